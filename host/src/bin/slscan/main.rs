@@ -1,0 +1,50 @@
+//! `slscan`: the scanner's command line. Wiring only: one file per subcommand in `cmd/`.
+
+mod cmd;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "slscan", version, about = "Structured-light 3D scanner host")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Talk to the sync board (real port or simulated).
+    Board(cmd::board::Args),
+    /// Write a fringe / Gray-code pattern set as PNG.
+    Patterns(cmd::patterns::Args),
+    /// Calibrate cameras and projectors from checkerboard captures.
+    Calibrate(cmd::calibrate::Args),
+    /// Reconstruct a point cloud from a folder of fringe images.
+    Reconstruct(cmd::reconstruct::Args),
+    /// Plan, capture and reconstruct a scan end to end.
+    Scan(cmd::scan::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Board(args) => cmd::board::run(args),
+        Command::Patterns(args) => cmd::patterns::run(args),
+        Command::Calibrate(args) => cmd::calibrate::run(args),
+        Command::Reconstruct(args) => cmd::reconstruct::run(args),
+        Command::Scan(args) => cmd::scan::run(args),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("slscan: error: {err:#}");
+            std::process::ExitCode::from(1)
+        }
+    }
+}

@@ -1,0 +1,4 @@
+//! The scanner's host library: from patterns and images to fused point clouds.
+//!
+//! (Being written.)
+#![warn(missing_docs)]

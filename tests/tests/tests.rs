@@ -1,0 +1,2 @@
+//! Cross-crate integration tests, built as one binary (as in ripgrep/tests).
+//! Each module says what it covers.
