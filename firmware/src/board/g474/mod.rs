@@ -1,0 +1,130 @@
+//! NUCLEO-G474RE (STM32G474RE): clocks, pin table, timers, capture, USB.
+//!
+//! [`init`] is the only entry point: it brings up the clock tree, takes each
+//! peripheral once (pins.rs), puts every trigger output at its inactive
+//! level and hands back owned drivers for `main.rs` to move into tasks.
+
+pub mod capture;
+pub mod clocks;
+pub mod hardware;
+pub mod pins;
+pub mod timebase;
+pub mod timers;
+
+use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::peripherals::{IWDG, USB};
+use embassy_stm32::usb::Driver;
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::{bind_interrupts, pac, peripherals, usb};
+
+use self::capture::FeedbackCapture;
+use self::hardware::G474Hardware;
+use self::pins::Pins;
+use self::timebase::Timebase;
+use self::timers::{DmaBuffers, TriggerTimers};
+
+bind_interrupts!(
+    /// Interrupts the firmware handles; everything else stays disabled.
+    pub struct Irqs {
+        USB_LP => usb::InterruptHandler<peripherals::USB>;
+        TIM2 => timers::CycleIrq;
+        TIM3 => capture::CaptureIrq;
+        TIM5 => timebase::WrapIrq;
+    }
+);
+
+/// Independent watchdog timeout: a stalled executor resets the board
+/// within this; the outputs then float to their pull-resistor idle level.
+pub const WATCHDOG_TIMEOUT_US: u32 = 500_000;
+
+/// Why the MCU last reset (RCC_CSR flags, cleared after reading).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum ResetCause {
+    /// Power-on or brown-out.
+    PowerOn,
+    /// NRST pin (reset button, probe).
+    Pin,
+    /// Software reset (e.g. probe-rs after flashing).
+    Software,
+    /// The independent watchdog fired: the firmware stalled.
+    Watchdog,
+    /// Window watchdog, low-power or option-byte reset.
+    Other,
+}
+
+impl ResetCause {
+    /// Reads and clears the reset flags. Call before anything else resets them.
+    fn take() -> Self {
+        let csr = pac::RCC.csr().read();
+        let cause = if csr.iwdgrstf() {
+            ResetCause::Watchdog
+        } else if csr.borrstf() {
+            ResetCause::PowerOn
+        } else if csr.sftrstf() {
+            ResetCause::Software
+        } else if csr.pinrstf() {
+            ResetCause::Pin
+        } else {
+            ResetCause::Other
+        };
+        pac::RCC.csr().modify(|w| w.set_rmvf(true));
+        cause
+    }
+}
+
+/// The owned drivers of the board.
+pub struct Board {
+    /// Trigger timers, board clock and feedback capture (board-core's hardware).
+    pub hardware: G474Hardware,
+    /// USB full-speed device driver.
+    pub usb: Driver<'static, USB>,
+    /// Status LED LD2 (PA5).
+    pub led: Output<'static>,
+    /// Independent watchdog, not yet started.
+    pub watchdog: IndependentWatchdog<'static, IWDG>,
+    /// Why the board last reset.
+    pub reset_cause: ResetCause,
+    /// 64-bit hash of the MCU's 96-bit unique id.
+    pub board_id: u64,
+}
+
+/// Brings the board up. `buffers` are the trigger DMA buffers (a static:
+/// 20 KiB do not belong on a stack).
+pub fn init(buffers: &'static mut DmaBuffers) -> Board {
+    let reset_cause = ResetCause::take();
+    let p = embassy_stm32::init(clocks::config());
+    // Keep the watchdog and trigger timers still while a debugger halts the
+    // core, so a breakpoint neither resets the board nor plays half a scan.
+    pac::DBGMCU.apb1lfzr().modify(|w| {
+        w.set_iwdg(true);
+        w.set_tim2(true);
+        w.set_tim3(true);
+        w.set_tim5(true);
+    });
+    let pins = Pins::take(p);
+    let timers = TriggerTimers::new(pins.trigger, buffers);
+    let capture = FeedbackCapture::new(pins.feedback);
+    let timebase = Timebase::new(pins.timebase);
+    let hardware = G474Hardware::new(timebase, timers, capture);
+    let usb = Driver::new(pins.usb.usb, Irqs, pins.usb.dp, pins.usb.dm);
+    let led = Output::new(pins.led, Level::Low, Speed::Low);
+    let watchdog = IndependentWatchdog::new(pins.iwdg, WATCHDOG_TIMEOUT_US);
+    defmt::info!("board: NUCLEO-G474RE up, last reset: {}", reset_cause);
+    Board {
+        hardware,
+        usb,
+        led,
+        watchdog,
+        reset_cause,
+        board_id: board_id(),
+    }
+}
+
+/// FNV-1a of the 96-bit unique id: stable per chip, fits `DeviceInfo::board_id`.
+fn board_id() -> u64 {
+    embassy_stm32::uid::uid()
+        .iter()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ u64::from(*b)).wrapping_mul(0x0000_0100_0000_01b3)
+        })
+}

@@ -1,0 +1,145 @@
+//! board-core's compiled [`EdgeTable`] -> the words each trigger channel's
+//! DMA writes into its timer compare register. Pure arithmetic, no chip
+//! code: the firmware's timers.rs calls it, and the host parity test
+//! (tests/tests/firmware_parity.rs) compiles this very file to prove that
+//! what the DMA would play equals what the simulated board executes.
+//!
+//! The scheme (board/g474/timers.rs): one timer period is one plan cycle
+//! (ARR = period - 1), each output channel toggles on compare match, and a
+//! circular DMA writes the next compare value at each match. Two details:
+//!
+//! - Counter domain shift: every edge plays at `CNT = tick + shift`, with
+//!   `shift = period - 1 - (latest edge of any channel)`, so no compare sits
+//!   on `CNT = 0`. A compare at 0 would fire again when the counter wraps to
+//!   0 and stops after the last cycle, raising a line after the scan. The
+//!   counter therefore starts `shift` ticks before the plan's `start_tick`.
+//! - Rotation: the compare register holds a channel's first edge before the
+//!   start, so its DMA buffer is edges 2..n then edge 1 (written at edge
+//!   n's match, ready for the next cycle).
+
+use board_core::EdgeTable;
+use protocol::HardwareFault;
+
+/// Shortest time between consecutive edges of one channel, the cycle wrap
+/// included: after a match the DMA must write the next compare value before
+/// the counter reaches it. Worst case four channels match on one tick and
+/// their DMA requests are served one after the other (README.md
+/// "Worst-case timing": about 48 HCLK cycles); 170 ticks (1 us at 170 MHz)
+/// leaves a 3.5x margin.
+pub const MIN_EDGE_SPACING_TICKS: u32 = 170;
+
+/// How one channel's compares are laid out for its DMA.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChannelLayout {
+    /// Compare value loaded by the CPU before the start (the first edge).
+    pub first_compare: u32,
+    /// Edges per cycle = DMA transfers per cycle (0: the channel stays idle).
+    pub edge_count: u16,
+}
+
+/// The counter-domain shift of `table` (see the module doc), or
+/// `EdgeUnderrun` on the channel that makes every shift impossible (an edge
+/// at tick 0 on one channel and at `period - 1` on another).
+pub fn counter_shift(table: &EdgeTable) -> Result<u32, HardwareFault> {
+    let period = table.period_ticks();
+    let Some(latest) = table.edges().iter().map(|e| e.tick).max() else {
+        return Ok(0);
+    };
+    if latest >= period {
+        return Err(underrun(table, latest));
+    }
+    let shift = period - 1 - latest;
+    if shift == 0 {
+        if let Some(e) = table.edges().iter().find(|e| e.tick == 0) {
+            return Err(HardwareFault::EdgeUnderrun { channel: e.channel });
+        }
+    }
+    Ok(shift)
+}
+
+/// Checks that every edge of `table` is on one of `channels` output
+/// channels and that each channel fits `capacity` words.
+pub fn check_channels(table: &EdgeTable, channels: u8, capacity: usize) -> Result<(), HardwareFault> {
+    if let Some(e) = table.edges().iter().find(|e| e.channel >= channels) {
+        return Err(HardwareFault::ChannelUnavailable { channel: e.channel });
+    }
+    for ch in 0..channels {
+        let n = table.channel_edges(ch).count();
+        if n > capacity {
+            return Err(HardwareFault::TableTooLarge {
+                edges: n.min(u16::MAX as usize) as u16,
+                capacity: capacity.min(u16::MAX as usize) as u16,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Writes channel `ch`'s DMA words (compare values in the shifted counter
+/// domain, rotated by one) into `buf` and returns the layout. Refuses
+/// (`EdgeUnderrun`) edges closer than [`MIN_EDGE_SPACING_TICKS`] to their
+/// predecessor, the cycle wrap included, and an odd edge count (the line
+/// would not end its cycle idle); `TableTooLarge` if `buf` is too short.
+pub fn fill_channel(
+    table: &EdgeTable,
+    ch: u8,
+    shift: u32,
+    buf: &mut [u32],
+) -> Result<ChannelLayout, HardwareFault> {
+    let period = table.period_ticks();
+    let n = table.channel_edges(ch).count();
+    if n == 0 {
+        return Ok(ChannelLayout {
+            first_compare: 0,
+            edge_count: 0,
+        });
+    }
+    if n > buf.len() || n > u16::MAX as usize {
+        return Err(HardwareFault::TableTooLarge {
+            edges: n.min(u16::MAX as usize) as u16,
+            capacity: buf.len().min(u16::MAX as usize) as u16,
+        });
+    }
+    if n % 2 != 0 {
+        return Err(HardwareFault::EdgeUnderrun { channel: ch });
+    }
+    let mut previous: Option<u32> = None;
+    let mut first = 0;
+    for (i, edge) in table.channel_edges(ch).enumerate() {
+        let compare = edge
+            .tick
+            .checked_add(shift)
+            .filter(|c| *c < period)
+            .ok_or(HardwareFault::EdgeUnderrun { channel: ch })?;
+        if let Some(p) = previous {
+            if compare < p.saturating_add(MIN_EDGE_SPACING_TICKS) {
+                return Err(HardwareFault::EdgeUnderrun { channel: ch });
+            }
+        }
+        previous = Some(compare);
+        if i == 0 {
+            first = compare;
+        } else {
+            buf[i - 1] = compare;
+        }
+    }
+    // `previous` is the last compare; the wrap spacing is last -> period -> first.
+    let last = previous.unwrap_or(first);
+    if (period - last).saturating_add(first) < MIN_EDGE_SPACING_TICKS {
+        return Err(HardwareFault::EdgeUnderrun { channel: ch });
+    }
+    buf[n - 1] = first;
+    Ok(ChannelLayout {
+        first_compare: first,
+        edge_count: n as u16,
+    })
+}
+
+fn underrun(table: &EdgeTable, tick: u32) -> HardwareFault {
+    let channel = table
+        .edges()
+        .iter()
+        .find(|e| e.tick == tick)
+        .map_or(0, |e| e.channel);
+    HardwareFault::EdgeUnderrun { channel }
+}

@@ -1,0 +1,201 @@
+//! The host link: USB CDC-ACM bytes <-> board-core's `Link`, and the scan
+//! poll. One task owns the link, the trigger hardware and the USB class, so
+//! requests, feedback checks and events never race.
+//!
+//! ```text
+//! USB OUT packet --Link::receive--> Dispatcher (board-core) --> response frames --+
+//! cycle IRQ / 1 ms tick --Link::poll--> Sequencer::poll --> event frames ---------+--> TxQueue --> USB IN
+//! ```
+//!
+//! Host gone (unplug, bus reset, suspend, endpoint disabled) mid-scan: the
+//! hardware reports `HostLinkLost`, the sequencer stops the scan with every
+//! output inactive and enters `Faulted`; the host finds that state (and the
+//! scan report) with `GetStatus` after reconnecting.
+
+use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+
+use board_core::{Link, TriggerHardware};
+use embassy_futures::select::{select3, Either3};
+use embassy_stm32::peripherals::USB;
+use embassy_stm32::usb::Driver;
+use embassy_time::Timer;
+use embassy_usb::class::cdc_acm::CdcAcmClass;
+use embassy_usb::driver::EndpointError;
+use heapless::Vec;
+use protocol::limits::MAX_FRAME_BYTES;
+use protocol::ScanState;
+
+use crate::board::active::hardware::G474Hardware;
+
+/// USB full-speed bulk packet size.
+pub const USB_PACKET_BYTES: usize = 64;
+/// Outgoing bytes buffered between the link and the USB IN endpoint: a
+/// response plus a burst of events.
+pub const TX_QUEUE_BYTES: usize = 4 * MAX_FRAME_BYTES;
+/// Poll period of the sequencer while nothing else wakes the task: how
+/// late a feedback check or the end of a scan may be noticed.
+const POLL_PERIOD_MS: u64 = 1;
+
+/// The CDC-ACM class on the G474's USB driver.
+pub type Class = CdcAcmClass<'static, Driver<'static, USB>>;
+
+/// False between a USB reset/suspend/unconfigure and the next configuration.
+static USB_CONFIGURED: AtomicBool = AtomicBool::new(false);
+/// The sequencer state as a small number, for the status LED.
+static SCAN_STATE: AtomicU8 = AtomicU8::new(0);
+
+/// The last published sequencer state (status LED).
+pub fn scan_state() -> ScanState {
+    match SCAN_STATE.load(Ordering::Relaxed) {
+        1 => ScanState::Armed,
+        2 => ScanState::Running,
+        3 => ScanState::Done,
+        4 => ScanState::Aborted,
+        5 => ScanState::Faulted,
+        _ => ScanState::Idle,
+    }
+}
+
+fn publish(state: ScanState) {
+    let code = match state {
+        ScanState::Idle => 0,
+        ScanState::Armed => 1,
+        ScanState::Running => 2,
+        ScanState::Done => 3,
+        ScanState::Aborted => 4,
+        ScanState::Faulted => 5,
+    };
+    if SCAN_STATE.swap(code, Ordering::Relaxed) != code {
+        defmt::info!("sequencer state: {}", defmt::Debug2Format(&state));
+    }
+}
+
+/// Tracks the USB device state for the link task (embassy-usb calls it
+/// from the device task).
+pub struct UsbStateHandler;
+
+impl embassy_usb::Handler for UsbStateHandler {
+    fn reset(&mut self) {
+        USB_CONFIGURED.store(false, Ordering::Relaxed);
+        defmt::warn!("usb: bus reset");
+    }
+    fn configured(&mut self, configured: bool) {
+        USB_CONFIGURED.store(configured, Ordering::Relaxed);
+        defmt::info!("usb: configured = {}", configured);
+    }
+    fn suspended(&mut self, suspended: bool) {
+        if suspended {
+            USB_CONFIGURED.store(false, Ordering::Relaxed);
+            defmt::warn!("usb: suspended (host gone or asleep)");
+        }
+    }
+}
+
+/// Frames waiting for the USB IN endpoint. Never blocks the link: a frame
+/// that does not fit is dropped and counted (the host sees the gap as a
+/// missing response and times out; board-core counts dropped events).
+pub struct TxQueue {
+    bytes: Vec<u8, TX_QUEUE_BYTES>,
+    dropped_frames: u32,
+}
+
+impl TxQueue {
+    const fn new() -> Self {
+        TxQueue {
+            bytes: Vec::new(),
+            dropped_frames: 0,
+        }
+    }
+
+    fn push(&mut self, frame: &[u8]) {
+        if self.bytes.extend_from_slice(frame).is_err() {
+            self.dropped_frames = self.dropped_frames.saturating_add(1);
+            defmt::warn!(
+                "usb: tx queue full, frame of {=usize} bytes dropped ({=u32} so far)",
+                frame.len(),
+                self.dropped_frames
+            );
+        }
+    }
+
+    /// Writes everything queued, in full-size packets, then a zero-length
+    /// packet if the last one was full (ends the host's bulk transfer).
+    async fn flush(&mut self, class: &mut Class) -> Result<(), EndpointError> {
+        if self.bytes.is_empty() {
+            return Ok(());
+        }
+        let mut last_full = false;
+        for packet in self.bytes.chunks(USB_PACKET_BYTES) {
+            class.write_packet(packet).await?;
+            last_full = packet.len() == USB_PACKET_BYTES;
+        }
+        if last_full {
+            class.write_packet(&[]).await?;
+        }
+        self.bytes.clear();
+        Ok(())
+    }
+}
+
+/// The link task: serves the host while connected; on disconnect stops a
+/// running scan through `HostLinkLost` and waits for the next connection.
+#[embassy_executor::task]
+pub async fn run(mut class: Class, mut hw: G474Hardware, link: &'static mut Link) {
+    let mut tx = TxQueue::new();
+    let mut rx = [0u8; USB_PACKET_BYTES];
+    loop {
+        class.wait_connection().await;
+        defmt::info!("usb: host link up");
+        let result = serve(&mut class, &mut hw, link, &mut tx, &mut rx).await;
+        defmt::warn!("usb: host link down ({})", result.err());
+        tx.bytes.clear();
+        host_gone(&mut hw, link);
+    }
+}
+
+/// Serves one connection until the endpoint reports the host gone.
+async fn serve(
+    class: &mut Class,
+    hw: &mut G474Hardware,
+    link: &mut Link,
+    tx: &mut TxQueue,
+    rx: &mut [u8; USB_PACKET_BYTES],
+) -> Result<(), EndpointError> {
+    loop {
+        let woke = select3(
+            class.read_packet(rx),
+            hw.wait_cycle(),
+            Timer::after_millis(POLL_PERIOD_MS),
+        )
+        .await;
+        if let Either3::First(read) = woke {
+            let n = read?;
+            link.receive(&rx[..n], hw, &mut |frame: &[u8]| tx.push(frame));
+        }
+        link.poll(hw, &mut |frame: &[u8]| tx.push(frame));
+        publish(link.dispatcher().sequencer().state());
+        tx.flush(class).await?;
+        if !USB_CONFIGURED.load(Ordering::Relaxed) {
+            return Err(EndpointError::Disabled);
+        }
+    }
+}
+
+/// The host went away: a running scan is stopped (outputs inactive) and
+/// faulted with `HostLinkLost`, an armed one aborted. Events produced now
+/// cannot be sent; the state stays for `GetStatus`.
+fn host_gone(hw: &mut G474Hardware, link: &mut Link) {
+    let sequencer = link.dispatcher_mut().sequencer_mut();
+    match sequencer.state() {
+        ScanState::Running => {
+            hw.host_link_lost();
+            sequencer.poll(hw);
+        }
+        ScanState::Armed => {
+            sequencer.abort(hw);
+        }
+        _ => hw.stop(),
+    }
+    while sequencer.pop_event().is_some() {}
+    publish(sequencer.state());
+}
