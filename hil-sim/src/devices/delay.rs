@@ -4,13 +4,15 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// A device delay: always at least `latency_ns`, plus up to `jitter_ns` more,
-/// drawn uniformly. Bounded (not Gaussian) so tests can state hard limits.
+/// A device delay: `latency_ns` nominal, deviating by at most `jitter_ns`
+/// either way, drawn uniformly (the meaning of `latency_ns` / `jitter_ns` in
+/// `protocol::limits` device profiles). Bounded, not Gaussian, so tests can
+/// state hard limits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Delay {
-    /// The smallest delay, in virtual nanoseconds.
+    /// The nominal delay, in virtual nanoseconds.
     pub latency_ns: u64,
-    /// The spread above `latency_ns`, in virtual nanoseconds (0 = no jitter).
+    /// The peak deviation from `latency_ns`, in virtual nanoseconds (0 = no jitter).
     pub jitter_ns: u64,
 }
 
@@ -21,6 +23,11 @@ impl Delay {
             latency_ns,
             jitter_ns: 0,
         }
+    }
+
+    /// The smallest delay this model can produce.
+    pub const fn min_ns(&self) -> u64 {
+        self.latency_ns.saturating_sub(self.jitter_ns)
     }
 
     /// The largest delay this model can produce.
@@ -51,11 +58,13 @@ impl DelaySource {
         self.delay
     }
 
-    /// The next delay in nanoseconds, in `[latency_ns, latency_ns + jitter_ns]`.
+    /// The next delay in nanoseconds, in `[min_ns(), max_ns()]`.
     pub fn next_ns(&mut self) -> u64 {
         match self.delay.jitter_ns {
             0 => self.delay.latency_ns,
-            jitter_ns => self.delay.latency_ns + self.rng.random_range(0..=jitter_ns),
+            _ => self
+                .rng
+                .random_range(self.delay.min_ns()..=self.delay.max_ns()),
         }
     }
 }
@@ -86,17 +95,14 @@ mod tests {
     }
 
     #[test]
-    fn jitter_spreads_over_the_whole_range() {
+    fn jitter_spreads_over_the_whole_range_either_side() {
         let delay = Delay {
-            latency_ns: 0,
-            jitter_ns: 9,
+            latency_ns: 5,
+            jitter_ns: 4,
         };
         let mut source = DelaySource::new(delay, 3);
-        let mut seen = [false; 10];
-        for _ in 0..1_000 {
-            seen[source.next_ns() as usize] = true;
-        }
-        assert!(seen.iter().all(|&s| s), "{seen:?}");
+        let seen: std::collections::BTreeSet<u64> = (0..1_000).map(|_| source.next_ns()).collect();
+        assert_eq!(seen, (1..=9).collect());
     }
 
     proptest! {
@@ -106,7 +112,7 @@ mod tests {
             let mut source = DelaySource::new(delay, seed);
             for _ in 0..16 {
                 let d = source.next_ns();
-                prop_assert!(d >= latency_ns && d <= delay.max_ns());
+                prop_assert!(d >= delay.min_ns() && d <= delay.max_ns());
             }
         }
     }

@@ -3,7 +3,7 @@
 //! its feedback line (projector trigger-out, camera exposure-active).
 //!
 //! They are plain state machines on virtual nanoseconds: feed them the board's
-//! output edges in time order and they answer with feedback pulses, and keep a
+//! output edges in time order and they answer with feedback edges, and keep a
 //! log of what they displayed or exposed so a camera model can integrate
 //! exactly what the DMDs showed during each exposure window.
 
@@ -11,25 +11,17 @@ pub mod camera;
 pub mod delay;
 pub mod projector;
 
-pub use camera::{Camera, CameraConfig, Exposure, ExposureMode};
+pub use camera::{Camera, CameraConfig, Exposure, MissReason};
 pub use delay::{Delay, DelaySource};
 pub use projector::{Displayed, Projector, ProjectorConfig};
 
-/// A high pulse on a line, in virtual nanoseconds: rising at `rise_ns`,
-/// falling at `fall_ns`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct Pulse {
-    /// The rising edge.
-    pub rise_ns: u64,
-    /// The falling edge.
-    pub fall_ns: u64,
-}
-
-impl Pulse {
-    /// How long the line stays high.
-    pub fn width_ns(&self) -> u64 {
-        self.fall_ns.saturating_sub(self.rise_ns)
-    }
+/// An edge on a device's feedback line, in virtual nanoseconds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LineEdge {
+    /// The level after the edge.
+    pub level: protocol::Level,
+    /// When it happened.
+    pub at_ns: u64,
 }
 
 /// How long each displayed pattern overlapped the window `[start_ns, end_ns)`:
