@@ -3,3 +3,7 @@
 //! (Being written: simulated board behind a pseudo-terminal, simulated
 //! devices, the digital twin.)
 #![warn(missing_docs)]
+
+pub mod devices;
+pub mod faults;
+pub mod pty;

@@ -1,5 +1,39 @@
 //! The wire contract shared by the sync board and the host.
 //!
-//! (Being written: messages, COBS + CRC framing, `ScanPlan` validation.)
+//! ```text
+//!  host                                              board (STM32 or hil-sim)
+//!  HostFrame { id, Request } --postcard-CRC-COBS-->  FrameAccumulator -> dispatch
+//!  BoardFrame::Response { id, .. }  <--------------  answer to each request
+//!  BoardFrame::Event(..)            <--------------  feedback checks, scan end
+//!  BoardFrame::LinkError(..)        <--------------  a frame was unreadable
+//! ```
+//!
+//! - [`messages`]: every request, response and event, one table.
+//! - [`framing`]: COBS + CRC-32 frames and the resynchronising accumulator.
+//! - [`plan`]: `ScanPlan -> validate(&BoardLimits) -> ValidPlan`, examples.
+//! - [`limits`]: capacities, board limits, device timing profiles, tick
+//!   conversion.
+//! - [`error`]: errors that cross the wire.
+//!
+//! `no_std`, no allocation: every collection is a `heapless` container whose
+//! capacity is a constant in [`limits`].
 #![cfg_attr(not(feature = "std"), no_std)]
 #![warn(missing_docs)]
+
+pub mod error;
+pub mod framing;
+pub mod limits;
+pub mod messages;
+pub mod plan;
+
+pub use error::{FrameError, HardwareFault, WireError};
+pub use framing::{decode_payload, encode_frame, FrameAccumulator};
+pub use limits::{BoardLimits, CameraModel, ProjectorModel};
+pub use messages::{
+    BoardFrame, BoardStatus, DeviceInfo, Event, FirmwareVersion, HostFrame, Level, PlanSummary,
+    Request, RequestId, ResetCause, Response, ScanReport, ScanState, PROTOCOL_VERSION,
+};
+pub use plan::{
+    CapacityError, Exposure, ExposureEntry, HeadConfig, HeadSet, PatternSlot, PlanError,
+    PlanHeader, ScanPlan, ValidPlan,
+};

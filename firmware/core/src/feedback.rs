@@ -1,0 +1,209 @@
+//! Matching captured feedback edges against the edges the plan expects.
+//!
+//! Each feedback line mirrors one output channel through a device: the
+//! camera's exposure-active line follows its trigger, the projector's
+//! trigger-out follows its trigger-in, each after the device's latency. A
+//! [`LineCursor`] walks the expected edges of one line (the output channel's
+//! edges of every cycle, shifted by the latency) in time order.
+
+use protocol::limits::{ns_to_ticks, MAX_OUTPUT_CHANNELS};
+use protocol::{Level, ValidPlan};
+
+use crate::edge_table::EdgeTable;
+
+/// How one feedback input follows one output channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FeedbackLine {
+    /// The output channel it mirrors.
+    pub output_channel: u8,
+    /// The feedback input.
+    pub feedback_channel: u8,
+    /// Nominal output -> feedback latency.
+    pub latency_ticks: u32,
+    /// Largest |measured - expected| counted as on time: the device's peak
+    /// jitter plus one tick of rounding.
+    pub tolerance_ticks: u32,
+}
+
+/// The feedback lines of a plan: per head, projector then camera.
+pub fn feedback_lines(plan: &ValidPlan) -> heapless::Vec<FeedbackLine, MAX_OUTPUT_CHANNELS> {
+    let hz = plan.timer_clock_hz();
+    let mut lines = heapless::Vec::new();
+    for head in plan.plan().heads.iter() {
+        let p = head.projector.profile();
+        let c = head.camera.profile();
+        for (out, fb, latency, jitter) in [
+            (
+                head.projector_trigger_channel,
+                head.projector_feedback_channel,
+                p.latency_ns,
+                p.jitter_ns,
+            ),
+            (
+                head.camera_trigger_channel,
+                head.camera_feedback_channel,
+                c.latency_ns,
+                c.jitter_ns,
+            ),
+        ] {
+            // MAX_HEADS * 2 <= MAX_OUTPUT_CHANNELS, so this never fails.
+            let _ = lines.push(FeedbackLine {
+                output_channel: out,
+                feedback_channel: fb,
+                latency_ticks: ns_to_ticks(latency as u64, hz) as u32,
+                tolerance_ticks: ns_to_ticks(jitter as u64, hz) as u32 + 1,
+            });
+        }
+    }
+    lines
+}
+
+/// An expected feedback edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Expected {
+    /// Absolute board tick.
+    pub tick: u64,
+    /// Level after the edge.
+    pub level: Level,
+    /// Cycle number.
+    pub cycle: u32,
+}
+
+/// Position in one line's expected edges.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LineCursor {
+    cycle: u32,
+    index: usize,
+    exhausted: bool,
+}
+
+impl LineCursor {
+    /// A cursor at the first expected edge of `line`.
+    pub fn start(table: &EdgeTable, line: &FeedbackLine) -> LineCursor {
+        let mut c = LineCursor {
+            cycle: 0,
+            index: 0,
+            exhausted: false,
+        };
+        c.seek(table, line);
+        c
+    }
+
+    /// Moves to the first edge of `line`'s output at or after the current
+    /// position, wrapping into the next cycle.
+    fn seek(&mut self, table: &EdgeTable, line: &FeedbackLine) {
+        let edges = table.edges();
+        loop {
+            if self.cycle >= table.repeat_count() {
+                self.exhausted = true;
+                return;
+            }
+            match edges[self.index.min(edges.len())..]
+                .iter()
+                .position(|e| e.channel == line.output_channel)
+            {
+                Some(offset) => {
+                    self.index += offset;
+                    return;
+                }
+                None => {
+                    if self.index == 0 {
+                        // The channel has no edges at all.
+                        self.exhausted = true;
+                        return;
+                    }
+                    self.index = 0;
+                    self.cycle += 1;
+                }
+            }
+        }
+    }
+
+    /// The expected edge under the cursor for a scan started at `start_tick`.
+    pub fn peek(
+        &self,
+        table: &EdgeTable,
+        line: &FeedbackLine,
+        start_tick: u64,
+    ) -> Option<Expected> {
+        if self.exhausted {
+            return None;
+        }
+        let e = table.edges().get(self.index)?;
+        Some(Expected {
+            tick: start_tick
+                + self.cycle as u64 * table.period_ticks() as u64
+                + e.tick as u64
+                + line.latency_ticks as u64,
+            level: e.level,
+            cycle: self.cycle,
+        })
+    }
+
+    /// Steps past the edge under the cursor.
+    pub fn advance(&mut self, table: &EdgeTable, line: &FeedbackLine) {
+        if self.exhausted {
+            return;
+        }
+        self.index += 1;
+        self.seek(table, line);
+    }
+
+    /// Whether every expected edge has been consumed.
+    pub fn is_exhausted(&self) -> bool {
+        self.exhausted
+    }
+
+    /// How far past an expected edge a capture may come and still be
+    /// attributed to it (as late): half the gap to the line's next expected
+    /// edge, at least the tolerance.
+    pub fn late_limit(&self, table: &EdgeTable, line: &FeedbackLine, start_tick: u64) -> u64 {
+        let Some(now) = self.peek(table, line, start_tick) else {
+            return line.tolerance_ticks as u64;
+        };
+        let mut next = *self;
+        next.advance(table, line);
+        let half_gap = next
+            .peek(table, line, start_tick)
+            .map_or(u64::MAX / 4, |n| (n.tick - now.tick) / 2);
+        half_gap.max(line.tolerance_ticks as u64)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::plan::examples;
+    use protocol::BoardLimits;
+
+    #[test]
+    fn cursor_walks_every_cycle_in_order() {
+        let plan = examples::multiplexed_24_at_5khz(3)
+            .validate(&BoardLimits::STM32G474)
+            .unwrap();
+        let table = EdgeTable::compile(&plan).unwrap();
+        let lines = feedback_lines(&plan);
+        let cam = lines[1];
+        let mut c = LineCursor::start(&table, &cam);
+        let mut ticks = heapless::Vec::<u64, 8>::new();
+        while let Some(e) = c.peek(&table, &cam, 1000) {
+            ticks.push(e.tick).unwrap();
+            c.advance(&table, &cam);
+        }
+        let lat = cam.latency_ticks as u64;
+        let p = table.period_ticks() as u64;
+        assert_eq!(
+            &ticks[..],
+            &[
+                340,
+                816_850,
+                p + 340,
+                p + 816_850,
+                2 * p + 340,
+                2 * p + 816_850
+            ]
+            .map(|t| 1000 + lat + t)
+        );
+        assert!(c.is_exhausted());
+    }
+}

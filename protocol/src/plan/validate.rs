@@ -1,0 +1,539 @@
+//! `ScanPlan::validate`: the checks that make a plan safe to sequence.
+//!
+//! Times are checked in nanoseconds with device latencies and their peak
+//! jitter included, so that any edge whose feedback stays within its device's
+//! jitter keeps every pattern inside its exposure with the plan's margin.
+
+use serde::{Deserialize, Serialize};
+
+use super::{ExposureEntry, ScanPlan};
+use crate::limits::{ns_to_ticks, BoardLimits, CameraProfile, ProjectorProfile};
+
+/// Why a plan was refused. Indices are positions in the plan's cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PlanError {
+    /// The plan has no heads.
+    NoHeads,
+    /// The plan has no exposures.
+    NoExposures,
+    /// A head names a channel the board does not have.
+    ChannelOutOfRange {
+        /// Head index (0 = A).
+        head: u8,
+        /// The channel named.
+        channel: u8,
+        /// Channels the board has of that kind.
+        available: u8,
+    },
+    /// Two heads (or a head's projector and camera) share an output or
+    /// feedback channel.
+    ChannelReused {
+        /// The channel named twice.
+        channel: u8,
+    },
+    /// `repeat_count` is 0 or above the board's maximum.
+    RepeatCountOutOfRange {
+        /// The requested count.
+        count: u32,
+        /// The board's maximum.
+        max: u32,
+    },
+    /// The repeat period is zero or does not fit the 32-bit timer.
+    PeriodOutOfRange {
+        /// The requested period.
+        period_ns: u32,
+    },
+    /// More exposures than the board holds.
+    TooManyExposures {
+        /// Exposures in the plan.
+        count: u16,
+        /// The board's maximum.
+        max: u16,
+    },
+    /// More pattern slots than the board holds.
+    TooManySlots {
+        /// Slots in the plan.
+        count: u16,
+        /// The board's maximum.
+        max: u16,
+    },
+    /// An exposure's slot range lies outside the plan's slot list.
+    SlotRangeInvalid {
+        /// Exposure index.
+        exposure: u16,
+    },
+    /// An exposure names no head, or a head the plan does not have.
+    UnknownHead {
+        /// Exposure index.
+        exposure: u16,
+        /// The head mask.
+        heads: u8,
+    },
+    /// Exposures are not listed in order of start time.
+    ExposuresOutOfOrder {
+        /// Index of the exposure that starts before its predecessor.
+        exposure: u16,
+    },
+    /// An exposure is shorter than its camera allows.
+    ExposureTooShort {
+        /// Exposure index.
+        exposure: u16,
+        /// Requested exposure time.
+        duration_ns: u32,
+        /// The camera's minimum.
+        min_ns: u32,
+    },
+    /// An exposure (or a projector trigger pulse in it) does not end before
+    /// the cycle's repeat period, counted in timer ticks.
+    ExposureBeyondPeriod {
+        /// Exposure index.
+        exposure: u16,
+        /// End of the exposure from the cycle start.
+        end_ns: u64,
+        /// The repeat period.
+        period_ns: u32,
+    },
+    /// Two exposures of one camera overlap or come faster than its frame
+    /// rate (also across the cycle wrap when the plan repeats).
+    OverlappingExposures {
+        /// Head index.
+        head: u8,
+        /// The earlier exposure.
+        first: u16,
+        /// The later exposure.
+        second: u16,
+    },
+    /// A pattern is shown shorter than, or triggered sooner after the
+    /// previous one than, the DMD's minimum pattern period.
+    PatternPeriodTooShort {
+        /// Exposure index.
+        exposure: u16,
+        /// Slot index within the exposure.
+        slot: u16,
+        /// Requested display time or trigger spacing, whichever is short.
+        period_ns: u64,
+        /// The projector's minimum.
+        min_ns: u32,
+    },
+    /// A pattern's slot starts before the previous pattern's display ended.
+    SlotsOverlap {
+        /// Exposure index.
+        exposure: u16,
+        /// Slot index within the exposure.
+        slot: u16,
+    },
+    /// A pattern's light (after latency, +-jitter) is not inside its
+    /// exposure (after latency, +-jitter) with the plan's margin.
+    PatternOutsideExposure {
+        /// Exposure index.
+        exposure: u16,
+        /// Slot index within the exposure.
+        slot: u16,
+        /// Head index.
+        head: u8,
+    },
+}
+
+impl core::fmt::Display for PlanError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        // The Debug form carries every offending value with its unit.
+        write!(f, "invalid scan plan: {self:?}")
+    }
+}
+
+/// A plan that passed [`ScanPlan::validate`] for one board; only validation
+/// makes one.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ValidPlan {
+    plan: ScanPlan,
+    board: BoardLimits,
+}
+
+impl ValidPlan {
+    /// The validated plan.
+    pub fn plan(&self) -> &ScanPlan {
+        &self.plan
+    }
+    /// The timer clock it was validated for.
+    pub fn timer_clock_hz(&self) -> u32 {
+        self.board.timer_clock_hz
+    }
+    /// The board limits it was validated against.
+    pub fn board(&self) -> &BoardLimits {
+        &self.board
+    }
+    /// Gives the plan back.
+    pub fn into_plan(self) -> ScanPlan {
+        self.plan
+    }
+}
+
+impl ScanPlan {
+    /// Checks the plan against the board's limits and the heads' device
+    /// profiles.
+    pub fn validate(self, board: &BoardLimits) -> Result<ValidPlan, PlanError> {
+        check_heads(&self, board)?;
+        check_counts(&self, board)?;
+        check_exposures(&self, board.timer_clock_hz)?;
+        for head in 0..self.heads.len() {
+            check_camera(&self, head)?;
+            check_projector(&self, head, board.timer_clock_hz)?;
+        }
+        Ok(ValidPlan {
+            plan: self,
+            board: *board,
+        })
+    }
+}
+
+fn check_heads(plan: &ScanPlan, board: &BoardLimits) -> Result<(), PlanError> {
+    if plan.heads.is_empty() {
+        return Err(PlanError::NoHeads);
+    }
+    let mut outputs_used = 0u32;
+    let mut inputs_used = 0u32;
+    for (i, head) in plan.heads.iter().enumerate() {
+        let outs = [head.projector_trigger_channel, head.camera_trigger_channel];
+        let ins = [
+            head.projector_feedback_channel,
+            head.camera_feedback_channel,
+        ];
+        for (channels, available, used) in [
+            (outs, board.output_channels, &mut outputs_used),
+            (ins, board.feedback_channels, &mut inputs_used),
+        ] {
+            for channel in channels {
+                if channel >= available || channel >= 32 {
+                    return Err(PlanError::ChannelOutOfRange {
+                        head: i as u8,
+                        channel,
+                        available,
+                    });
+                }
+                if *used & (1 << channel) != 0 {
+                    return Err(PlanError::ChannelReused { channel });
+                }
+                *used |= 1 << channel;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_counts(plan: &ScanPlan, board: &BoardLimits) -> Result<(), PlanError> {
+    if plan.repeat_count == 0 || plan.repeat_count > board.max_repeat_count {
+        return Err(PlanError::RepeatCountOutOfRange {
+            count: plan.repeat_count,
+            max: board.max_repeat_count,
+        });
+    }
+    if plan.repeat_period_ns == 0
+        || ns_to_ticks(plan.repeat_period_ns as u64, board.timer_clock_hz) > u32::MAX as u64
+    {
+        return Err(PlanError::PeriodOutOfRange {
+            period_ns: plan.repeat_period_ns,
+        });
+    }
+    if plan.exposures.is_empty() {
+        return Err(PlanError::NoExposures);
+    }
+    if plan.exposures.len() > board.max_exposures as usize {
+        return Err(PlanError::TooManyExposures {
+            count: plan.exposures.len() as u16,
+            max: board.max_exposures,
+        });
+    }
+    if plan.slots.len() > board.max_slots_per_cycle as usize {
+        return Err(PlanError::TooManySlots {
+            count: plan.slots.len() as u16,
+            max: board.max_slots_per_cycle,
+        });
+    }
+    Ok(())
+}
+
+/// Whether an edge at `end_ns` comes out strictly before the next cycle's
+/// start once both are timer ticks (a compare at the period never fires).
+fn ends_in_cycle(plan: &ScanPlan, end_ns: u64, hz: u32) -> bool {
+    ns_to_ticks(end_ns, hz) < ns_to_ticks(plan.repeat_period_ns as u64, hz)
+}
+
+fn check_exposures(plan: &ScanPlan, hz: u32) -> Result<(), PlanError> {
+    let head_mask = (1u16 << plan.heads.len()) - 1;
+    let mut previous_start = 0u32;
+    for (i, e) in plan.exposures.iter().enumerate() {
+        let exposure = i as u16;
+        let end = e.first_slot as usize + e.slot_count as usize;
+        if end > plan.slots.len() {
+            return Err(PlanError::SlotRangeInvalid { exposure });
+        }
+        if e.heads.0 == 0 || e.heads.0 as u16 & !head_mask != 0 {
+            return Err(PlanError::UnknownHead {
+                exposure,
+                heads: e.heads.0,
+            });
+        }
+        if e.start_ns < previous_start {
+            return Err(PlanError::ExposuresOutOfOrder { exposure });
+        }
+        previous_start = e.start_ns;
+        let end_ns = e.start_ns as u64 + e.duration_ns as u64;
+        if !ends_in_cycle(plan, end_ns, hz) {
+            return Err(PlanError::ExposureBeyondPeriod {
+                exposure,
+                end_ns,
+                period_ns: plan.repeat_period_ns,
+            });
+        }
+    }
+    Ok(())
+}
+
+fn exposures_of(plan: &ScanPlan, head: usize) -> impl Iterator<Item = (u16, &ExposureEntry)> + '_ {
+    plan.exposures
+        .iter()
+        .enumerate()
+        .filter(move |(_, e)| e.heads.contains(head))
+        .map(|(i, e)| (i as u16, e))
+}
+
+fn check_camera(plan: &ScanPlan, head: usize) -> Result<(), PlanError> {
+    let camera: CameraProfile = plan.heads[head].camera.profile();
+    let mut first: Option<(u16, &ExposureEntry)> = None;
+    let mut previous: Option<(u16, &ExposureEntry)> = None;
+    for (i, e) in exposures_of(plan, head) {
+        if e.duration_ns < camera.min_exposure_ns {
+            return Err(PlanError::ExposureTooShort {
+                exposure: i,
+                duration_ns: e.duration_ns,
+                min_ns: camera.min_exposure_ns,
+            });
+        }
+        if let Some((p, prev)) = previous {
+            check_camera_pair(&camera, head, (p, prev, 0), (i, e))?;
+        }
+        first.get_or_insert((i, e));
+        previous = Some((i, e));
+    }
+    // The next cycle's first exposure follows this cycle's last one.
+    if let (Some((f, fe)), Some((l, le)), true) = (first, previous, plan.repeat_count > 1) {
+        check_camera_pair(
+            &camera,
+            head,
+            (l, le, plan.repeat_period_ns as u64),
+            (f, fe),
+        )
+        .map_err(|_| PlanError::OverlappingExposures {
+            head: head as u8,
+            first: l,
+            second: f,
+        })?;
+    }
+    Ok(())
+}
+
+/// `earlier` carries a shift subtracted from its times (the repeat period
+/// for the cycle wrap).
+fn check_camera_pair(
+    camera: &CameraProfile,
+    head: usize,
+    earlier: (u16, &ExposureEntry, u64),
+    later: (u16, &ExposureEntry),
+) -> Result<(), PlanError> {
+    let (p, prev, shift) = earlier;
+    let (i, e) = later;
+    let next_start = e.start_ns as u64 + shift;
+    let prev_end = prev.start_ns as u64 + prev.duration_ns as u64;
+    if next_start < prev_end + camera.min_gap_ns as u64
+        || next_start - (prev.start_ns as u64) < camera.min_frame_period_ns as u64
+    {
+        return Err(PlanError::OverlappingExposures {
+            head: head as u8,
+            first: p,
+            second: i,
+        });
+    }
+    Ok(())
+}
+
+fn check_projector(plan: &ScanPlan, head: usize, hz: u32) -> Result<(), PlanError> {
+    let projector: ProjectorProfile = plan.heads[head].projector.profile();
+    let camera: CameraProfile = plan.heads[head].camera.profile();
+    let min_period = projector.min_pattern_period_ns as u64;
+    // Absolute (from cycle start) trigger time and display end of the
+    // previous pattern of this projector.
+    let mut previous: Option<(u64, u64)> = None;
+    for (i, e) in exposures_of(plan, head) {
+        // The window the camera integrates, where the pattern's light must fall.
+        let light_from = e.start_ns as i64
+            + camera.latency_ns as i64
+            + camera.jitter_ns as i64
+            + plan.margin_ns as i64;
+        let light_to = e.start_ns as i64 + e.duration_ns as i64 + camera.latency_ns as i64
+            - camera.jitter_ns as i64
+            - plan.margin_ns as i64;
+        for (s, slot) in plan.slots_of(e).iter().enumerate() {
+            let slot_index = s as u16;
+            let trigger = e.start_ns as u64 + slot.offset_ns as u64;
+            let display_end = trigger + slot.display_ns as u64;
+            let spacing = previous.map_or(u64::MAX, |(t, _)| trigger.saturating_sub(t));
+            if let Some((_, prev_end)) = previous {
+                if trigger < prev_end {
+                    return Err(PlanError::SlotsOverlap {
+                        exposure: i,
+                        slot: slot_index,
+                    });
+                }
+            }
+            let period = spacing.min(slot.display_ns as u64);
+            if period < min_period {
+                return Err(PlanError::PatternPeriodTooShort {
+                    exposure: i,
+                    slot: slot_index,
+                    period_ns: period,
+                    min_ns: projector.min_pattern_period_ns,
+                });
+            }
+            let shown_from =
+                trigger as i64 + projector.latency_ns as i64 - projector.jitter_ns as i64;
+            let shown_to =
+                display_end as i64 + projector.latency_ns as i64 + projector.jitter_ns as i64;
+            if shown_from < light_from || shown_to > light_to {
+                return Err(PlanError::PatternOutsideExposure {
+                    exposure: i,
+                    slot: slot_index,
+                    head: head as u8,
+                });
+            }
+            let pulse_end = trigger + projector.trigger_pulse_ns as u64;
+            if !ends_in_cycle(plan, pulse_end, hz) {
+                return Err(PlanError::ExposureBeyondPeriod {
+                    exposure: i,
+                    end_ns: pulse_end,
+                    period_ns: plan.repeat_period_ns,
+                });
+            }
+            previous = Some((trigger, display_end));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::{examples, HeadSet, PatternSlot};
+
+    const BOARD: BoardLimits = BoardLimits::STM32G474;
+
+    #[test]
+    fn examples_are_valid() {
+        for plan in examples::all() {
+            plan.validate(&BOARD).unwrap();
+        }
+    }
+
+    #[test]
+    fn pattern_period_below_dmd_limit_is_refused() {
+        // 24 patterns at 5 kHz on a DLPC350 (minimum 235 us).
+        let mut plan = examples::multiplexed_24_at_5khz(1);
+        plan.heads[0].projector = crate::limits::ProjectorModel::Dlpc350;
+        assert!(matches!(
+            plan.validate(&BOARD),
+            Err(PlanError::PatternPeriodTooShort {
+                exposure: 0,
+                slot: 0,
+                period_ns: 200_000,
+                min_ns: 235_000
+            })
+        ));
+    }
+
+    #[test]
+    fn pattern_outside_exposure_is_refused() {
+        let mut plan = examples::multiplexed_24_at_5khz(1);
+        let last = plan.slots.len() - 1;
+        plan.slots[last].display_ns += 50_000;
+        assert!(matches!(
+            plan.validate(&BOARD),
+            Err(PlanError::PatternOutsideExposure {
+                exposure: 0,
+                slot: 23,
+                head: 0
+            })
+        ));
+    }
+
+    #[test]
+    fn overlapping_exposures_are_refused() {
+        let mut plan = examples::dual_head_psp(1);
+        plan.exposures[1].start_ns = plan.exposures[0].start_ns + 1000;
+        assert!(matches!(
+            plan.validate(&BOARD),
+            Err(PlanError::OverlappingExposures {
+                head: 0,
+                first: 0,
+                second: 1
+            })
+        ));
+    }
+
+    #[test]
+    fn too_many_slots_is_refused() {
+        let mut board = BOARD;
+        board.max_slots_per_cycle = 10;
+        assert!(matches!(
+            examples::multiplexed_24_at_5khz(1).validate(&board),
+            Err(PlanError::TooManySlots { count: 24, max: 10 })
+        ));
+    }
+
+    #[test]
+    fn channel_out_of_range_and_reuse_are_refused() {
+        let mut plan = examples::dual_head_psp(1);
+        plan.heads[1].camera_trigger_channel = 9;
+        assert!(matches!(
+            plan.validate(&BOARD),
+            Err(PlanError::ChannelOutOfRange {
+                head: 1,
+                channel: 9,
+                ..
+            })
+        ));
+        let mut plan = examples::dual_head_psp(1);
+        plan.heads[1].camera_trigger_channel = plan.heads[0].camera_trigger_channel;
+        assert!(matches!(
+            plan.validate(&BOARD),
+            Err(PlanError::ChannelReused { .. })
+        ));
+    }
+
+    #[test]
+    fn unknown_head_is_refused() {
+        let mut plan = examples::flood_preliminaries(1);
+        plan.exposures[0].heads = HeadSet::B;
+        assert!(matches!(
+            plan.validate(&BOARD),
+            Err(PlanError::UnknownHead {
+                exposure: 0,
+                heads: 2
+            })
+        ));
+    }
+
+    #[test]
+    fn slots_overlapping_are_refused() {
+        let mut plan = examples::multiplexed_24_at_5khz(1);
+        plan.slots[1] = PatternSlot {
+            offset_ns: plan.slots[1].offset_ns - 1_000,
+            ..plan.slots[1]
+        };
+        assert!(matches!(
+            plan.validate(&BOARD),
+            Err(PlanError::SlotsOverlap {
+                exposure: 0,
+                slot: 1
+            })
+        ));
+    }
+}
