@@ -55,6 +55,7 @@ async fn main(spawner: Spawner) {
         firmware_version: firmware_version(),
         board_id: board.board_id,
         limits: BoardLimits::STM32G474,
+        reset_cause: board.reset_cause,
     };
     let link = LINK.init_with(|| Link::new(info));
 
@@ -63,7 +64,7 @@ async fn main(spawner: Spawner) {
     spawner.spawn(defmt::unwrap!(usb_link::run(class, board.hardware, link)));
     spawner.spawn(defmt::unwrap!(status_led::run(board.led)));
     spawner.spawn(defmt::unwrap!(watchdog::run(board.watchdog)));
-    defmt::info!("tasks running (reset cause {})", board.reset_cause);
+    defmt::info!("tasks running");
 }
 
 /// The USB device with one CDC-ACM function.

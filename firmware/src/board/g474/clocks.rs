@@ -53,3 +53,8 @@ pub fn config() -> Config {
     rcc.mux.clk48sel = mux::Clk48sel::HSI48;
     config
 }
+
+// The tree above and the limits the host validates plans against must agree:
+// every edge tick the host computes is a tick of this clock.
+const _: () = assert!(TIMER_CLOCK_HZ == protocol::BoardLimits::STM32G474.timer_clock_hz);
+const _: () = assert!(HSE_HZ / 6 * 85 / 2 == TIMER_CLOCK_HZ);

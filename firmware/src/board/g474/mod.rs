@@ -16,6 +16,7 @@ use embassy_stm32::peripherals::{IWDG, USB};
 use embassy_stm32::usb::Driver;
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, pac, peripherals, usb};
+use protocol::ResetCause;
 
 use self::capture::FeedbackCapture;
 use self::hardware::G474Hardware;
@@ -37,38 +38,30 @@ bind_interrupts!(
 /// within this; the outputs then float to their pull-resistor idle level.
 pub const WATCHDOG_TIMEOUT_US: u32 = 500_000;
 
-/// Why the MCU last reset (RCC_CSR flags, cleared after reading).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
-pub enum ResetCause {
-    /// Power-on or brown-out.
-    PowerOn,
-    /// NRST pin (reset button, probe).
-    Pin,
-    /// Software reset (e.g. probe-rs after flashing).
-    Software,
-    /// The independent watchdog fired: the firmware stalled.
-    Watchdog,
-    /// Window watchdog, low-power or option-byte reset.
-    Other,
-}
-
-impl ResetCause {
-    /// Reads and clears the reset flags. Call before anything else resets them.
-    fn take() -> Self {
-        let csr = pac::RCC.csr().read();
-        let cause = if csr.iwdgrstf() {
-            ResetCause::Watchdog
-        } else if csr.borrstf() {
-            ResetCause::PowerOn
-        } else if csr.sftrstf() {
-            ResetCause::Software
-        } else if csr.pinrstf() {
-            ResetCause::Pin
-        } else {
-            ResetCause::Other
-        };
-        pac::RCC.csr().modify(|w| w.set_rmvf(true));
-        cause
+/// Reads and clears the RCC_CSR reset flags: why the MCU last reset, in
+/// the protocol's terms (reported to the host in `DeviceInfo`). Call before
+/// anything else could reset them.
+fn take_reset_cause() -> ResetCause {
+    let csr = pac::RCC.csr().read();
+    pac::RCC.csr().modify(|w| w.set_rmvf(true));
+    defmt::info!(
+        "reset flags: iwdg={} sw={} pin={} bor={} wwdg={} lpwr={} obl={}",
+        csr.iwdgrstf(),
+        csr.sftrstf(),
+        csr.pinrstf(),
+        csr.borrstf(),
+        csr.wwdgrstf(),
+        csr.lpwrrstf(),
+        csr.oblrstf()
+    );
+    if csr.iwdgrstf() {
+        ResetCause::Watchdog
+    } else if csr.sftrstf() && !csr.borrstf() {
+        ResetCause::Software
+    } else {
+        // Power-on, brown-out, the reset pin (button, probe) and the rarer
+        // causes all start from a clean slate: `PowerOn`.
+        ResetCause::PowerOn
     }
 }
 
@@ -91,7 +84,7 @@ pub struct Board {
 /// Brings the board up. `buffers` are the trigger DMA buffers (a static:
 /// 20 KiB do not belong on a stack).
 pub fn init(buffers: &'static mut DmaBuffers) -> Board {
-    let reset_cause = ResetCause::take();
+    let reset_cause = take_reset_cause();
     let p = embassy_stm32::init(clocks::config());
     // Keep the watchdog and trigger timers still while a debugger halts the
     // core, so a breakpoint neither resets the board nor plays half a scan.
@@ -109,7 +102,10 @@ pub fn init(buffers: &'static mut DmaBuffers) -> Board {
     let usb = Driver::new(pins.usb.usb, Irqs, pins.usb.dp, pins.usb.dm);
     let led = Output::new(pins.led, Level::Low, Speed::Low);
     let watchdog = IndependentWatchdog::new(pins.iwdg, WATCHDOG_TIMEOUT_US);
-    defmt::info!("board: NUCLEO-G474RE up, last reset: {}", reset_cause);
+    defmt::info!(
+        "board: NUCLEO-G474RE up, last reset: {}",
+        defmt::Debug2Format(&reset_cause)
+    );
     Board {
         hardware,
         usb,
