@@ -18,15 +18,17 @@
 //!   n's match, ready for the next cycle).
 
 use board_core::EdgeTable;
-use protocol::HardwareFault;
+use protocol::{BoardLimits, HardwareFault};
 
 /// Shortest time between consecutive edges of one channel, the cycle wrap
 /// included: after a match the DMA must write the next compare value before
 /// the counter reaches it. Worst case four channels match on one tick and
 /// their DMA requests are served one after the other (README.md
-/// "Worst-case timing": about 48 HCLK cycles); 170 ticks (1 us at 170 MHz)
-/// leaves a 3.5x margin.
-pub const MIN_EDGE_SPACING_TICKS: u32 = 170;
+/// "Worst-case timing": about 60 HCLK cycles); 170 ticks (1 us at 170 MHz)
+/// leaves a margin of almost 3. The board declares the same number to the
+/// host (`BoardLimits::min_edge_spacing_ticks`), whose plan compilation
+/// refuses closer edges; the check here is the last line of defence.
+pub const MIN_EDGE_SPACING_TICKS: u32 = BoardLimits::STM32G474.min_edge_spacing_ticks;
 
 /// How one channel's compares are laid out for its DMA.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -59,12 +61,16 @@ pub fn counter_shift(table: &EdgeTable) -> Result<u32, HardwareFault> {
 
 /// Checks that every edge of `table` is on one of `channels` output
 /// channels and that each channel fits `capacity` words.
-pub fn check_channels(table: &EdgeTable, channels: u8, capacity: usize) -> Result<(), HardwareFault> {
+pub fn check_channels(
+    table: &EdgeTable,
+    channels: u8,
+    capacity: usize,
+) -> Result<(), HardwareFault> {
     if let Some(e) = table.edges().iter().find(|e| e.channel >= channels) {
         return Err(HardwareFault::ChannelUnavailable { channel: e.channel });
     }
     for ch in 0..channels {
-        let n = table.channel_edges(ch).count();
+        let n = table.channel_ticks(ch).count();
         if n > capacity {
             return Err(HardwareFault::TableTooLarge {
                 edges: n.min(u16::MAX as usize) as u16,
@@ -87,7 +93,7 @@ pub fn fill_channel(
     buf: &mut [u32],
 ) -> Result<ChannelLayout, HardwareFault> {
     let period = table.period_ticks();
-    let n = table.channel_edges(ch).count();
+    let n = table.channel_ticks(ch).count();
     if n == 0 {
         return Ok(ChannelLayout {
             first_compare: 0,
@@ -105,9 +111,8 @@ pub fn fill_channel(
     }
     let mut previous: Option<u32> = None;
     let mut first = 0;
-    for (i, edge) in table.channel_edges(ch).enumerate() {
-        let compare = edge
-            .tick
+    for (i, tick) in table.channel_ticks(ch).enumerate() {
+        let compare = tick
             .checked_add(shift)
             .filter(|c| *c < period)
             .ok_or(HardwareFault::EdgeUnderrun { channel: ch })?;

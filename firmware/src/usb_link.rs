@@ -7,14 +7,14 @@
 //! cycle IRQ / 1 ms tick --Link::poll--> Sequencer::poll --> event frames ---------+--> TxQueue --> USB IN
 //! ```
 //!
-//! Host gone (unplug, bus reset, suspend, endpoint disabled) mid-scan: the
-//! hardware reports `HostLinkLost`, the sequencer stops the scan with every
-//! output inactive and enters `Faulted`; the host finds that state (and the
-//! scan report) with `GetStatus` after reconnecting.
+//! Host gone (unplug, bus reset, suspend, endpoint disabled) mid-scan:
+//! `Link::host_link_lost` aborts the scan with every output inactive; the
+//! host's serial port errors at once, and after reconnecting `GetStatus`
+//! shows `Aborted` with the scan report.
 
 use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
-use board_core::{Link, TriggerHardware};
+use board_core::Link;
 use embassy_futures::select::{select3, Either3};
 use embassy_stm32::peripherals::USB;
 use embassy_stm32::usb::Driver;
@@ -181,21 +181,14 @@ async fn serve(
     }
 }
 
-/// The host went away: a running scan is stopped (outputs inactive) and
-/// faulted with `HostLinkLost`, an armed one aborted. Events produced now
-/// cannot be sent; the state stays for `GetStatus`.
+/// The host went away: board-core stops any scan (outputs inactive,
+/// armed/running -> aborted), drops the half-received frame and the plan
+/// upload. The state stays for `GetStatus` after reconnecting.
 fn host_gone(hw: &mut G474Hardware, link: &mut Link) {
-    let sequencer = link.dispatcher_mut().sequencer_mut();
-    match sequencer.state() {
-        ScanState::Running => {
-            hw.host_link_lost();
-            sequencer.poll(hw);
-        }
-        ScanState::Armed => {
-            sequencer.abort(hw);
-        }
-        _ => hw.stop(),
+    let was = link.dispatcher().sequencer().state();
+    link.host_link_lost(hw);
+    if matches!(was, ScanState::Armed | ScanState::Running) {
+        defmt::warn!("usb: host gone mid-scan, scan aborted, outputs inactive");
     }
-    while sequencer.pop_event().is_some() {}
-    publish(sequencer.state());
+    publish(link.dispatcher().sequencer().state());
 }

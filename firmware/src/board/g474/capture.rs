@@ -45,9 +45,11 @@ static CAPTURES: Channel<CriticalSectionRawMutex, RawCapture, CAPTURE_QUEUE_LEN>
 /// TIM3 wraps since the strobe: the high bits of every capture.
 static WRAPS: AtomicU32 = AtomicU32::new(0);
 /// Level after the last edge, per channel.
-static LEVEL: [AtomicBool; FEEDBACK_CHANNELS] = [const { AtomicBool::new(false) }; FEEDBACK_CHANNELS];
+static LEVEL: [AtomicBool; FEEDBACK_CHANNELS] =
+    [const { AtomicBool::new(false) }; FEEDBACK_CHANNELS];
 /// An edge was lost on this channel and not yet reported.
-static LOST: [AtomicBool; FEEDBACK_CHANNELS] = [const { AtomicBool::new(false) }; FEEDBACK_CHANNELS];
+static LOST: [AtomicBool; FEEDBACK_CHANNELS] =
+    [const { AtomicBool::new(false) }; FEEDBACK_CHANNELS];
 
 /// Input filter: 8 samples at 170 MHz must agree (47 ns): rejects ringing on
 /// long camera cables, far below any real pulse width.
@@ -119,7 +121,10 @@ impl FeedbackCapture {
         WRAPS.store(0, Ordering::Relaxed);
         let idr = pac::GPIOC.idr().read();
         for (ch, pin) in FEEDBACK_PIN_NUMBERS.into_iter().enumerate() {
-            LEVEL[ch].store(idr.idr(pin) == pac::gpio::vals::Idr::HIGH, Ordering::Relaxed);
+            LEVEL[ch].store(
+                idr.idr(pin) == pac::gpio::vals::Idr::HIGH,
+                Ordering::Relaxed,
+            );
             LOST[ch].store(false, Ordering::Relaxed);
         }
         CAPTURES.clear();
@@ -167,9 +172,9 @@ impl Handler<Tim3Irq> for CaptureIrq {
             }
             let lost = sr.ccof(ch);
             let low = r.ccr(ch).read().ccr(); // reading CCRx clears CCxIF
-            // A wrap pending in this pass and a small value: the capture came
-            // after the wrap. (A capture before a wrap has a large value: the
-            // IRQ runs well within half a TIM3 period of it.)
+                                              // A wrap pending in this pass and a small value: the capture came
+                                              // after the wrap. (A capture before a wrap has a large value: the
+                                              // IRQ runs well within half a TIM3 period of it.)
             let high = if sr.uif() && low < 0x8000 {
                 wraps + 1
             } else {

@@ -18,8 +18,6 @@ pub struct G474Hardware {
     strobe_tick: u64,
     /// Captures lost since `load` (over-capture or full queue).
     captures_lost: u32,
-    /// Set by the USB task when the host went away mid-scan.
-    host_link_lost: bool,
 }
 
 impl G474Hardware {
@@ -31,15 +29,7 @@ impl G474Hardware {
             capture,
             strobe_tick: 0,
             captures_lost: 0,
-            host_link_lost: false,
         }
-    }
-
-    /// The USB link dropped (unplug, bus reset, suspend): the next
-    /// `fault()` reports `HostLinkLost`, which makes the sequencer stop the
-    /// scan (outputs inactive) and enter `Faulted`.
-    pub fn host_link_lost(&mut self) {
-        self.host_link_lost = true;
     }
 
     /// Waits for the next cycle end of a running scan (or an IRQ stop).
@@ -52,7 +42,6 @@ impl TriggerHardware for G474Hardware {
     fn load(&mut self, table: &EdgeTable) -> Result<(), HardwareFault> {
         self.stop();
         self.captures_lost = 0;
-        self.host_link_lost = false;
         self.timers.load(table)
     }
 
@@ -108,9 +97,6 @@ impl TriggerHardware for G474Hardware {
     }
 
     fn fault(&self) -> Option<HardwareFault> {
-        if self.host_link_lost {
-            return Some(HardwareFault::HostLinkLost);
-        }
         if let Some(channel) = self.timers.underrun() {
             return Some(HardwareFault::EdgeUnderrun { channel });
         }

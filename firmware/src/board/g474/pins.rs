@@ -21,8 +21,8 @@
 //! (timebase.rs). TIM15 is embassy's time driver.
 
 use embassy_stm32::peripherals::{
-    DMA1_CH1, DMA1_CH2, DMA1_CH3, DMA1_CH4, IWDG, PA0, PA1, PA11, PA12, PA5, PB10, PB11, PC6,
-    PC7, PC8, PC9, TIM2, TIM3, TIM5, USB,
+    DMA1_CH1, DMA1_CH2, DMA1_CH3, DMA1_CH4, IWDG, PA0, PA1, PA11, PA12, PA5, PB10, PB11, PC6, PC7,
+    PC8, PC9, TIM2, TIM3, TIM5, USB,
 };
 use embassy_stm32::{Peri, Peripherals};
 

@@ -86,7 +86,8 @@ impl Timebase {
             }
             self.disarm_strobe();
             r.ccr(0).write_value(at as u32); // low 32 bits: TIM5 compares its CNT
-            r.ccmr_output(0).modify(|w| w.set_ocm(0, Ocm::ACTIVE_ON_MATCH));
+            r.ccmr_output(0)
+                .modify(|w| w.set_ocm(0, Ocm::ACTIVE_ON_MATCH));
             Ok(())
         })
     }
