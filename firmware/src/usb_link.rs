@@ -18,7 +18,7 @@ use board_core::Link;
 use embassy_futures::select::{select3, Either3};
 use embassy_stm32::peripherals::USB;
 use embassy_stm32::usb::Driver;
-use embassy_time::Timer;
+use embassy_time::{with_timeout, Duration, TimeoutError, Timer};
 use embassy_usb::class::cdc_acm::CdcAcmClass;
 use embassy_usb::driver::EndpointError;
 use heapless::Vec;
@@ -35,12 +35,18 @@ pub const TX_QUEUE_BYTES: usize = 4 * MAX_FRAME_BYTES;
 /// Poll period of the sequencer while nothing else wakes the task: how
 /// late a feedback check or the end of a scan may be noticed.
 const POLL_PERIOD_MS: u64 = 1;
+/// How long one IN packet may wait for the host to read it.
+const WRITE_TIMEOUT_MS: u64 = 100;
+/// Re-check period while the host link is down.
+const LINK_DOWN_POLL_MS: u64 = 10;
 
 /// The CDC-ACM class on the G474's USB driver.
 pub type Class = CdcAcmClass<'static, Driver<'static, USB>>;
 
-/// False between a USB reset/suspend/unconfigure and the next configuration.
+/// The host has configured the device (false after a bus reset).
 static USB_CONFIGURED: AtomicBool = AtomicBool::new(false);
+/// The bus is suspended (host asleep, or the cable pulled: no more SOFs).
+static USB_SUSPENDED: AtomicBool = AtomicBool::new(false);
 /// The sequencer state as a small number, for the status LED.
 static SCAN_STATE: AtomicU8 = AtomicU8::new(0);
 
@@ -84,11 +90,18 @@ impl embassy_usb::Handler for UsbStateHandler {
         defmt::info!("usb: configured = {}", configured);
     }
     fn suspended(&mut self, suspended: bool) {
+        USB_SUSPENDED.store(suspended, Ordering::Relaxed);
         if suspended {
-            USB_CONFIGURED.store(false, Ordering::Relaxed);
             defmt::warn!("usb: suspended (host gone or asleep)");
+        } else {
+            defmt::info!("usb: resumed");
         }
     }
+}
+
+/// Whether the host can talk to us: configured and not suspended.
+fn usb_link_up() -> bool {
+    USB_CONFIGURED.load(Ordering::Relaxed) && !USB_SUSPENDED.load(Ordering::Relaxed)
 }
 
 /// Frames waiting for the USB IN endpoint. Never blocks the link: a frame
@@ -119,14 +132,33 @@ impl TxQueue {
     }
 
     /// Writes everything queued, in full-size packets, then a zero-length
-    /// packet if the last one was full (ends the host's bulk transfer).
+    /// packet if the last one was full (ends the host's bulk transfer). A
+    /// host that has the port open but stops reading for
+    /// [`WRITE_TIMEOUT_MS`] loses the queued frames rather than stalling
+    /// the link (and with it the scan's feedback checks).
     async fn flush(&mut self, class: &mut Class) -> Result<(), EndpointError> {
         if self.bytes.is_empty() {
             return Ok(());
         }
         let mut last_full = false;
         for packet in self.bytes.chunks(USB_PACKET_BYTES) {
-            class.write_packet(packet).await?;
+            let sent = with_timeout(
+                Duration::from_millis(WRITE_TIMEOUT_MS),
+                class.write_packet(packet),
+            )
+            .await;
+            match sent {
+                Ok(result) => result?,
+                Err(TimeoutError) => {
+                    defmt::warn!(
+                        "usb: host not reading, {=usize} queued bytes dropped",
+                        self.bytes.len()
+                    );
+                    self.dropped_frames = self.dropped_frames.saturating_add(1);
+                    self.bytes.clear();
+                    return Ok(());
+                }
+            }
             last_full = packet.len() == USB_PACKET_BYTES;
         }
         if last_full {
@@ -144,6 +176,11 @@ pub async fn run(mut class: Class, mut hw: G474Hardware, link: &'static mut Link
     let mut tx = TxQueue::new();
     let mut rx = [0u8; USB_PACKET_BYTES];
     loop {
+        // Suspended-but-configured keeps the endpoints enabled, so
+        // `wait_connection` alone could return at once: wait for the link.
+        while !usb_link_up() {
+            Timer::after_millis(LINK_DOWN_POLL_MS).await;
+        }
         class.wait_connection().await;
         defmt::info!("usb: host link up");
         let result = serve(&mut class, &mut hw, link, &mut tx, &mut rx).await;
@@ -175,7 +212,7 @@ async fn serve(
         link.poll(hw, &mut |frame: &[u8]| tx.push(frame));
         publish(link.dispatcher().sequencer().state());
         tx.flush(class).await?;
-        if !USB_CONFIGURED.load(Ordering::Relaxed) {
+        if !usb_link_up() {
             return Err(EndpointError::Disabled);
         }
     }
