@@ -4,6 +4,8 @@
 //! devices, the digital twin.)
 #![warn(missing_docs)]
 
+pub mod clock;
 pub mod devices;
 pub mod faults;
 pub mod pty;
+pub mod sim_hardware;

@@ -172,6 +172,11 @@ pub const fn ns_to_ticks(ns: u64, timer_clock_hz: u32) -> u64 {
     ((ns as u128 * timer_clock_hz as u128 + 500_000_000) / 1_000_000_000) as u64
 }
 
+/// Fewest whole ticks of a `timer_clock_hz` clock lasting at least `ns`.
+pub const fn ns_to_ticks_ceil(ns: u64, timer_clock_hz: u32) -> u64 {
+    ((ns as u128 * timer_clock_hz as u128).div_ceil(1_000_000_000)) as u64
+}
+
 /// Nanoseconds of `ticks` ticks of a `timer_clock_hz` clock, rounded to nearest.
 pub const fn ticks_to_ns(ticks: u64, timer_clock_hz: u32) -> u64 {
     if timer_clock_hz == 0 {

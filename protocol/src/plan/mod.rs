@@ -20,6 +20,7 @@
 //! request, because a whole plan exceeds [`crate::limits::MAX_FRAME_BYTES`].
 
 pub mod examples;
+pub mod random;
 mod validate;
 
 pub use validate::{PlanError, ValidPlan};

@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::{ExposureEntry, ScanPlan};
-use crate::limits::{ns_to_ticks, BoardLimits, CameraProfile, ProjectorProfile};
+use crate::limits::{ns_to_ticks, ns_to_ticks_ceil, BoardLimits, CameraProfile, ProjectorProfile};
 
 /// Why a plan was refused. Indices are positions in the plan's cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -176,7 +176,7 @@ impl ScanPlan {
         check_counts(&self, board)?;
         check_exposures(&self, board.timer_clock_hz)?;
         for head in 0..self.heads.len() {
-            check_camera(&self, head)?;
+            check_camera(&self, head, board.timer_clock_hz)?;
             check_projector(&self, head, board.timer_clock_hz)?;
         }
         Ok(ValidPlan {
@@ -297,7 +297,7 @@ fn exposures_of(plan: &ScanPlan, head: usize) -> impl Iterator<Item = (u16, &Exp
         .map(|(i, e)| (i as u16, e))
 }
 
-fn check_camera(plan: &ScanPlan, head: usize) -> Result<(), PlanError> {
+fn check_camera(plan: &ScanPlan, head: usize, hz: u32) -> Result<(), PlanError> {
     let camera: CameraProfile = plan.heads[head].camera.profile();
     let mut first: Option<(u16, &ExposureEntry)> = None;
     let mut previous: Option<(u16, &ExposureEntry)> = None;
@@ -310,7 +310,7 @@ fn check_camera(plan: &ScanPlan, head: usize) -> Result<(), PlanError> {
             });
         }
         if let Some((p, prev)) = previous {
-            check_camera_pair(&camera, head, (p, prev, 0), (i, e))?;
+            check_camera_pair(&camera, head, (p, prev, 0), (i, e), hz)?;
         }
         first.get_or_insert((i, e));
         previous = Some((i, e));
@@ -322,6 +322,7 @@ fn check_camera(plan: &ScanPlan, head: usize) -> Result<(), PlanError> {
             head,
             (l, le, plan.repeat_period_ns as u64),
             (f, fe),
+            hz,
         )
         .map_err(|_| PlanError::OverlappingExposures {
             head: head as u8,
@@ -332,6 +333,38 @@ fn check_camera(plan: &ScanPlan, head: usize) -> Result<(), PlanError> {
     Ok(())
 }
 
+/// A time as plan nanoseconds and as the tick the board plays it at.
+#[derive(Clone, Copy)]
+struct Instant {
+    ns: u64,
+    ticks: u64,
+}
+
+impl Instant {
+    fn at(ns: u64, hz: u32) -> Instant {
+        Instant {
+            ns,
+            ticks: ns_to_ticks(ns, hz),
+        }
+    }
+    /// This instant in the cycle that starts at `cycle_start` (ticks add up
+    /// as the timer plays them: cycle start tick + offset tick).
+    fn after(self, cycle_start: Instant) -> Instant {
+        Instant {
+            ns: self.ns + cycle_start.ns,
+            ticks: self.ticks + cycle_start.ticks,
+        }
+    }
+}
+
+/// Whether `later` is at least `min_ns` after `earlier`, both in plan time
+/// and as played (whole ticks; the minimum rounded up to whole ticks), so
+/// tick rounding never takes a device below its limit.
+fn spaced(later: Instant, earlier: Instant, min_ns: u32, hz: u32) -> bool {
+    later.ns >= earlier.ns + min_ns as u64
+        && later.ticks >= earlier.ticks + ns_to_ticks_ceil(min_ns as u64, hz)
+}
+
 /// `earlier` carries a shift subtracted from its times (the repeat period
 /// for the cycle wrap).
 fn check_camera_pair(
@@ -339,13 +372,17 @@ fn check_camera_pair(
     head: usize,
     earlier: (u16, &ExposureEntry, u64),
     later: (u16, &ExposureEntry),
+    hz: u32,
 ) -> Result<(), PlanError> {
-    let (p, prev, shift) = earlier;
+    let (p, prev, period_ns) = earlier;
     let (i, e) = later;
-    let next_start = e.start_ns as u64 + shift;
-    let prev_end = prev.start_ns as u64 + prev.duration_ns as u64;
-    if next_start < prev_end + camera.min_gap_ns as u64
-        || next_start - (prev.start_ns as u64) < camera.min_frame_period_ns as u64
+    // The later exposure may belong to the next cycle (the wrap check).
+    let period = Instant::at(period_ns, hz);
+    let next_start = Instant::at(e.start_ns as u64, hz).after(period);
+    let prev_start = Instant::at(prev.start_ns as u64, hz);
+    let prev_end = Instant::at(prev.start_ns as u64 + prev.duration_ns as u64, hz);
+    if !spaced(next_start, prev_end, camera.min_gap_ns, hz)
+        || !spaced(next_start, prev_start, camera.min_frame_period_ns, hz)
     {
         return Err(PlanError::OverlappingExposures {
             head: head as u8,
@@ -377,6 +414,14 @@ fn check_projector(plan: &ScanPlan, head: usize, hz: u32) -> Result<(), PlanErro
             let trigger = e.start_ns as u64 + slot.offset_ns as u64;
             let display_end = trigger + slot.display_ns as u64;
             let spacing = previous.map_or(u64::MAX, |(t, _)| trigger.saturating_sub(t));
+            let spaced_in_ticks = previous.is_none_or(|(t, _)| {
+                spaced(
+                    Instant::at(trigger, hz),
+                    Instant::at(t, hz),
+                    projector.min_pattern_period_ns,
+                    hz,
+                )
+            });
             if let Some((_, prev_end)) = previous {
                 if trigger < prev_end {
                     return Err(PlanError::SlotsOverlap {
@@ -386,7 +431,7 @@ fn check_projector(plan: &ScanPlan, head: usize, hz: u32) -> Result<(), PlanErro
                 }
             }
             let period = spacing.min(slot.display_ns as u64);
-            if period < min_period {
+            if period < min_period || !spaced_in_ticks {
                 return Err(PlanError::PatternPeriodTooShort {
                     exposure: i,
                     slot: slot_index,

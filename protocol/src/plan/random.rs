@@ -1,0 +1,215 @@
+//! Random *valid* plans of every capture mode, from any source of random
+//! `u64`s (proptest's seed, the soak's ChaCha): one generator for the
+//! property tests and for `hil-sim soak`.
+//!
+//! Plans are valid by construction (each time is derived from the device
+//! profiles' limits plus a random slack that is sometimes zero, so pattern
+//! periods go down to the DMD limit); callers still validate them, and a
+//! refusal is a generator bug worth reporting.
+
+use super::{HeadConfig, HeadSet, PatternSlot, ScanPlan};
+use crate::limits::{
+    CameraModel, CameraProfile, ProjectorModel, ProjectorProfile, MAX_SLOTS_PER_EXPOSURE,
+};
+
+/// The capture modes of the seed papers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlanKind {
+    /// Seed 000: both heads project and expose together.
+    DualHead,
+    /// Seed 000 reference run: one head of a dual-head rig (0 = A, 1 = B).
+    HeadOnly(u8),
+    /// Seed 001: many binary patterns inside one long exposure, repeated.
+    Multiplexed,
+    /// Seeds 003/004: uniform floods, one long exposure each.
+    Flood,
+}
+
+/// A random-number source: each call returns fresh random bits.
+pub trait Bits {
+    /// 64 random bits.
+    fn next_u64(&mut self) -> u64;
+    /// Uniform in `lo..=hi` (slightly biased for huge ranges; fine here).
+    fn range(&mut self, lo: u64, hi: u64) -> u64 {
+        if hi <= lo {
+            return lo;
+        }
+        lo + self.next_u64() % (hi - lo + 1)
+    }
+    /// A slack that is zero one time in four (to hit limits exactly).
+    fn slack(&mut self, max: u64) -> u64 {
+        if self.next_u64().is_multiple_of(4) {
+            0
+        } else {
+            self.range(0, max)
+        }
+    }
+}
+
+impl<F: FnMut() -> u64> Bits for F {
+    fn next_u64(&mut self) -> u64 {
+        self()
+    }
+}
+
+/// SplitMix64: a tiny seeded generator for `no_std` callers and proptest.
+#[derive(Debug, Clone)]
+pub struct SplitMix64(pub u64);
+
+impl Bits for SplitMix64 {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+}
+
+/// A random capture mode.
+pub fn random_kind(bits: &mut impl Bits) -> PlanKind {
+    match bits.range(0, 4) {
+        0 => PlanKind::DualHead,
+        1 => PlanKind::HeadOnly(0),
+        2 => PlanKind::HeadOnly(1),
+        3 => PlanKind::Multiplexed,
+        _ => PlanKind::Flood,
+    }
+}
+
+/// A random valid plan of `kind`.
+pub fn random_plan(kind: PlanKind, bits: &mut impl Bits) -> ScanPlan {
+    let projector = if bits.range(0, 1) == 0 {
+        ProjectorModel::Dlpc350
+    } else {
+        ProjectorModel::Dlpc900
+    };
+    let camera = match kind {
+        PlanKind::Multiplexed => CameraModel::Colour208Hz,
+        _ if bits.range(0, 1) == 0 => CameraModel::Mono6Mp,
+        _ => CameraModel::Colour208Hz,
+    };
+    let two_heads = matches!(kind, PlanKind::DualHead | PlanKind::HeadOnly(_));
+    let heads = [
+        super::examples::head(0, projector, camera),
+        super::examples::head(1, projector, camera),
+    ];
+    let heads: &[HeadConfig] = if two_heads { &heads } else { &heads[..1] };
+    let (head_set, exposures, slots_per_exposure, repeat_max) = match kind {
+        PlanKind::DualHead => (HeadSet::BOTH, bits.range(1, 16), 1, 2),
+        PlanKind::HeadOnly(h) => (HeadSet(1 << (h & 1)), bits.range(1, 16), 1, 2),
+        PlanKind::Multiplexed => (HeadSet::A, 1, bits.range(1, 24), 6),
+        PlanKind::Flood => (HeadSet::A, 7, 1, 1),
+    };
+    let long_display = !matches!(kind, PlanKind::Multiplexed);
+    let margin_ns = bits.range(0, 2_000) as u32;
+    let shape = Shape {
+        p: projector.profile(),
+        c: camera.profile(),
+        margin_ns: margin_ns as u64,
+        lead_ns: 2_000 + bits.slack(20_000),
+    };
+    let repeat = bits.range(1, repeat_max) as u32;
+    let mut plan = ScanPlan::new(heads, repeat, 0, margin_ns).unwrap_or_else(|_| unreachable!());
+    let mut start_ns = shape.lead_ns;
+    let mut first_start = None;
+    let mut last = (0u64, 0u64);
+    for _ in 0..exposures {
+        let (duration, slots) = shape.exposure(bits, slots_per_exposure as usize, long_display);
+        let _ = plan.push_exposure(
+            head_set,
+            start_ns as u32,
+            duration as u32,
+            &slots[..slots_per_exposure as usize],
+        );
+        first_start.get_or_insert(start_ns);
+        last = (start_ns, start_ns + duration);
+        start_ns = shape.next_start(bits, start_ns, start_ns + duration);
+    }
+    // The cycle wraps to its first exposure: the next cycle's first start
+    // must be as far from the last exposure as any next exposure would be.
+    let wrap_start = shape.next_start(bits, last.0, last.1);
+    let first = first_start.unwrap_or(0);
+    plan.repeat_period_ns = (wrap_start - first).max(last.1 + 2_000) as u32;
+    plan
+}
+
+struct Shape {
+    p: ProjectorProfile,
+    c: CameraProfile,
+    margin_ns: u64,
+    lead_ns: u64,
+}
+
+impl Shape {
+    /// Earliest projector trigger offset that keeps the pattern's light
+    /// inside the exposure's light with the margin.
+    fn first_offset(&self) -> u64 {
+        let need = self.c.latency_ns as u64 + self.c.jitter_ns as u64 + self.margin_ns;
+        let have = (self.p.latency_ns - self.p.jitter_ns) as u64;
+        need.saturating_sub(have)
+    }
+
+    /// Duration and slots of one exposure.
+    fn exposure(
+        &self,
+        bits: &mut impl Bits,
+        count: usize,
+        long: bool,
+    ) -> (u64, [PatternSlot; MAX_SLOTS_PER_EXPOSURE]) {
+        let min_period = self.p.min_pattern_period_ns as u64;
+        let period = if long {
+            bits.range(min_period, 15_000_000)
+        } else {
+            min_period + bits.slack(min_period / 2)
+        };
+        let mut slots = [PatternSlot {
+            pattern_index: 0,
+            offset_ns: 0,
+            display_ns: 0,
+        }; MAX_SLOTS_PER_EXPOSURE];
+        let mut offset = self.first_offset() + bits.slack(5_000);
+        for (k, slot) in slots.iter_mut().take(count).enumerate() {
+            *slot = PatternSlot {
+                pattern_index: k as u16,
+                offset_ns: offset as u32,
+                display_ns: period as u32,
+            };
+            offset += period;
+        }
+        // Light of the last pattern ends at `offset` + latency + jitter.
+        let light_end = offset + (self.p.latency_ns + self.p.jitter_ns) as u64;
+        let exposure_light_lag = self.c.latency_ns as u64 - self.c.jitter_ns as u64;
+        let duration = (light_end + self.margin_ns)
+            .saturating_sub(exposure_light_lag)
+            .max(self.c.min_exposure_ns as u64)
+            + bits.slack(10_000);
+        (duration, slots)
+    }
+
+    /// Earliest start of the next exposure of the same camera, plus slack.
+    fn next_start(&self, bits: &mut impl Bits, start: u64, end: u64) -> u64 {
+        let by_gap = end + self.c.min_gap_ns as u64;
+        let by_rate = start + self.c.min_frame_period_ns as u64;
+        // One tick of headroom: validation also checks the played ticks.
+        by_gap.max(by_rate) + 6 + bits.slack(50_000)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::limits::BoardLimits;
+
+    #[test]
+    fn thousands_of_random_plans_validate() {
+        let mut bits = SplitMix64(1);
+        for _ in 0..5_000 {
+            let kind = random_kind(&mut bits);
+            let plan = random_plan(kind, &mut bits);
+            if let Err(e) = plan.clone().validate(&BoardLimits::STM32G474) {
+                panic!("{kind:?} gave an invalid plan: {e:?}\n{plan:?}");
+            }
+        }
+    }
+}
