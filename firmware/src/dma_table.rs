@@ -8,11 +8,13 @@
 //! (ARR = period - 1), each output channel toggles on compare match, and a
 //! circular DMA writes the next compare value at each match. Two details:
 //!
-//! - Counter domain shift: every edge plays at `CNT = tick + shift`, with
-//!   `shift = period - 1 - (latest edge of any channel)`, so no compare sits
-//!   on `CNT = 0`. A compare at 0 would fire again when the counter wraps to
-//!   0 and stops after the last cycle, raising a line after the scan. The
-//!   counter therefore starts `shift` ticks before the plan's `start_tick`.
+//! - Counter domain shift: every edge plays at `CNT = tick + shift`. No
+//!   compare may sit on `CNT = 0`: it would fire again when the counter
+//!   wraps to 0 and stops after the last cycle, raising a line after the
+//!   scan. board-core keeps every first edge `min_edge_spacing_ticks` after
+//!   the cycle start, so the shift is 0; a table with an edge at tick 0 is
+//!   played one tick later in counter terms (shift 1, the counter starting
+//!   one tick before `start_tick`), so absolute edge times do not move.
 //! - Rotation: the compare register holds a channel's first edge before the
 //!   start, so its DMA buffer is edges 2..n then edge 1 (written at edge
 //!   n's match, ready for the next cycle).
@@ -39,24 +41,21 @@ pub struct ChannelLayout {
     pub edge_count: u16,
 }
 
-/// The counter-domain shift of `table` (see the module doc), or
-/// `EdgeUnderrun` on the channel that makes every shift impossible (an edge
-/// at tick 0 on one channel and at `period - 1` on another).
+/// The counter-domain shift of `table` (see the module doc): 0 unless an
+/// edge sits on tick 0, then 1; `EdgeUnderrun` on the channel that makes
+/// shift 1 impossible (another edge at `period - 1`).
 pub fn counter_shift(table: &EdgeTable) -> Result<u32, HardwareFault> {
     let period = table.period_ticks();
-    let Some(latest) = table.edges().iter().map(|e| e.tick).max() else {
+    if let Some(e) = table.edges().iter().find(|e| e.tick >= period) {
+        return Err(HardwareFault::EdgeUnderrun { channel: e.channel });
+    }
+    if !table.edges().iter().any(|e| e.tick == 0) {
         return Ok(0);
-    };
-    if latest >= period {
-        return Err(underrun(table, latest));
     }
-    let shift = period - 1 - latest;
-    if shift == 0 {
-        if let Some(e) = table.edges().iter().find(|e| e.tick == 0) {
-            return Err(HardwareFault::EdgeUnderrun { channel: e.channel });
-        }
+    match table.edges().iter().find(|e| e.tick == period - 1) {
+        Some(e) => Err(HardwareFault::EdgeUnderrun { channel: e.channel }),
+        None => Ok(1),
     }
-    Ok(shift)
 }
 
 /// Checks that every edge of `table` is on one of `channels` output
@@ -106,7 +105,7 @@ pub fn fill_channel(
             capacity: buf.len().min(u16::MAX as usize) as u16,
         });
     }
-    if n % 2 != 0 {
+    if !n.is_multiple_of(2) {
         return Err(HardwareFault::EdgeUnderrun { channel: ch });
     }
     let mut previous: Option<u32> = None;
@@ -138,13 +137,4 @@ pub fn fill_channel(
         first_compare: first,
         edge_count: n as u16,
     })
-}
-
-fn underrun(table: &EdgeTable, tick: u32) -> HardwareFault {
-    let channel = table
-        .edges()
-        .iter()
-        .find(|e| e.tick == tick)
-        .map_or(0, |e| e.channel);
-    HardwareFault::EdgeUnderrun { channel }
 }

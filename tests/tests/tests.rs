@@ -1,2 +1,4 @@
 //! Cross-crate integration tests, built as one binary (as in ripgrep/tests).
 //! Each module says what it covers.
+
+mod firmware_parity;
