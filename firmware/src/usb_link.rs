@@ -23,7 +23,7 @@ use embassy_usb::class::cdc_acm::CdcAcmClass;
 use embassy_usb::driver::EndpointError;
 use heapless::Vec;
 use protocol::limits::MAX_FRAME_BYTES;
-use protocol::ScanState;
+use protocol::{decode_payload, BoardFrame, Event, FrameAccumulator, Response, ScanState};
 
 use crate::board::active::hardware::G474Hardware;
 
@@ -104,12 +104,53 @@ fn usb_link_up() -> bool {
     USB_CONFIGURED.load(Ordering::Relaxed) && !USB_SUSPENDED.load(Ordering::Relaxed)
 }
 
+/// Logs every error and scan outcome the link sends to the host, by
+/// decoding the outgoing frames again (board-core encodes them; the log is
+/// the firmware's view of what the host was told).
+struct TxLog {
+    frames: FrameAccumulator,
+}
+
+impl TxLog {
+    const fn new() -> Self {
+        TxLog {
+            frames: FrameAccumulator::new(),
+        }
+    }
+
+    fn log(&mut self, frame: &[u8]) {
+        self.frames.feed(frame, |payload| {
+            let Ok(decoded) = payload.and_then(decode_payload::<BoardFrame>) else {
+                return;
+            };
+            match decoded {
+                BoardFrame::Response {
+                    response: Response::Refused(error),
+                    ..
+                } => defmt::warn!("refused: {}", defmt::Debug2Format(&error)),
+                BoardFrame::LinkError(error) => {
+                    defmt::warn!(
+                        "unreadable frame from host: {}",
+                        defmt::Debug2Format(&error)
+                    )
+                }
+                BoardFrame::Event(event @ Event::ScanFinished { .. }) => {
+                    defmt::info!("{}", defmt::Debug2Format(&event))
+                }
+                BoardFrame::Event(event) => defmt::debug!("{}", defmt::Debug2Format(&event)),
+                BoardFrame::Response { .. } => {}
+            }
+        });
+    }
+}
+
 /// Frames waiting for the USB IN endpoint. Never blocks the link: a frame
 /// that does not fit is dropped and counted (the host sees the gap as a
 /// missing response and times out; board-core counts dropped events).
 pub struct TxQueue {
     bytes: Vec<u8, TX_QUEUE_BYTES>,
     dropped_frames: u32,
+    log: TxLog,
 }
 
 impl TxQueue {
@@ -117,10 +158,12 @@ impl TxQueue {
         TxQueue {
             bytes: Vec::new(),
             dropped_frames: 0,
+            log: TxLog::new(),
         }
     }
 
     fn push(&mut self, frame: &[u8]) {
+        self.log.log(frame);
         if self.bytes.extend_from_slice(frame).is_err() {
             self.dropped_frames = self.dropped_frames.saturating_add(1);
             defmt::warn!(
