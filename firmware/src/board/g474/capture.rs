@@ -58,13 +58,16 @@ const INPUT_FILTER: FilterValue = FilterValue::FCK_INT_N8;
 /// TIM3 capture of the four feedback lines.
 pub struct FeedbackCapture {
     tim: Timer<'static, TIM3>,
-    _pins: (
-        CapturePin<'static, TIM3, Ch1>,
-        CapturePin<'static, TIM3, Ch2>,
-        CapturePin<'static, TIM3, Ch3>,
-        CapturePin<'static, TIM3, Ch4>,
-    ),
+    _pins: CapturePins,
 }
+
+/// The four feedback pins in timer-input mode, held for the driver's life.
+type CapturePins = (
+    CapturePin<'static, TIM3, Ch1>,
+    CapturePin<'static, TIM3, Ch2>,
+    CapturePin<'static, TIM3, Ch3>,
+    CapturePin<'static, TIM3, Ch4>,
+);
 
 impl FeedbackCapture {
     /// Configures TIM3 as a slave of the start strobe with all four channels

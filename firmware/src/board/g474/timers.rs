@@ -82,21 +82,26 @@ pub enum RunState {
     Running,
 }
 
+/// The four trigger pins in timer-output mode, held for the driver's life.
+type OutputPins = (
+    PwmPin<'static, TIM2, Ch1>,
+    PwmPin<'static, TIM2, Ch2>,
+    PwmPin<'static, TIM2, Ch3>,
+    PwmPin<'static, TIM2, Ch4>,
+);
+/// The DMA channels feeding CCR1..CCR4, reserved so nothing else uses them.
+type TriggerDma = (
+    Peri<'static, DMA1_CH1>,
+    Peri<'static, DMA1_CH2>,
+    Peri<'static, DMA1_CH3>,
+    Peri<'static, DMA1_CH4>,
+);
+
 /// TIM2 + DMA1 trigger outputs.
 pub struct TriggerTimers {
     tim: Timer<'static, TIM2>,
-    _pins: (
-        PwmPin<'static, TIM2, Ch1>,
-        PwmPin<'static, TIM2, Ch2>,
-        PwmPin<'static, TIM2, Ch3>,
-        PwmPin<'static, TIM2, Ch4>,
-    ),
-    _dma: (
-        Peri<'static, DMA1_CH1>,
-        Peri<'static, DMA1_CH2>,
-        Peri<'static, DMA1_CH3>,
-        Peri<'static, DMA1_CH4>,
-    ),
+    _pins: OutputPins,
+    _dma: TriggerDma,
     buffers: &'static mut DmaBuffers,
     layout: [ChannelLayout; TRIGGER_CHANNELS],
     period_ticks: u32,
@@ -122,12 +127,12 @@ impl TriggerTimers {
             w.set_ts(STROBE_TRIGGER);
             w.set_sms(Sms::TRIGGER_MODE);
         });
-        for ch in 0..TRIGGER_CHANNELS {
+        for (ch, active_high) in TRIGGER_ACTIVE_HIGH.into_iter().enumerate() {
             force_inactive(ch);
             r.ccmr_output(ch / 2).modify(|w| w.set_ocpe(ch % 2, false));
             r.ccer().modify(|w| {
                 // CCxP inverts OCx: an active-low line idles high.
-                w.set_ccp(ch, !TRIGGER_ACTIVE_HIGH[ch]);
+                w.set_ccp(ch, !active_high);
                 w.set_cce(ch, true);
             });
         }
