@@ -17,6 +17,7 @@
 mod board;
 mod dma_table;
 mod status_led;
+mod tick_extend;
 mod usb_link;
 mod watchdog;
 

@@ -11,9 +11,15 @@
 //!   and the end-to-end tests run;
 //!
 //! must produce the same output edges, tick for tick, over several cycles.
+//!
+//! The firmware's other pure piece, the extension of 16/32-bit counter
+//! values to the 64-bit board clock (firmware/src/tick_extend.rs, same file
+//! again), is checked exhaustively on narrow counters at the end.
 
 #[path = "../../firmware/src/dma_table.rs"]
 mod dma_table;
+#[path = "../../firmware/src/tick_extend.rs"]
+mod tick_extend;
 
 use board_core::{EdgeTable, TriggerHardware};
 use hil_sim::sim_hardware::{RecordedEdge, SimHardware, SimHead};
@@ -179,5 +185,51 @@ fn a_buffer_too_small_is_refused_not_overrun() {
     assert_eq!(
         dma_table::check_channels(&table, 1, MAX_EDGES),
         Err(protocol::HardwareFault::ChannelUnavailable { channel: 1 })
+    );
+}
+
+/// Every capture time `t_c` of a `bits`-wide counter, read `delay` ticks
+/// later (less than half a wrap, as the IRQ priorities guarantee), in both
+/// states the interrupt can leave the wrap count in: up to date (no wrap
+/// since the capture) or one wrap flagged but not yet counted (within half a
+/// wrap of the read). The extended value must be `t_c` exactly.
+#[test]
+fn counter_values_extend_to_the_exact_64_bit_tick() {
+    for bits in [4u32, 8, 12] {
+        let period = 1u64 << bits;
+        let half = period / 2;
+        let mut checked = 0u32;
+        for t_c in 0..6 * period {
+            let low = (t_c % period) as u32;
+            for delay in 0..half {
+                let t_r = t_c + delay;
+                let wraps_at_read = t_r / period;
+                // Up to date: only valid when no wrap came between capture and read.
+                if t_r / period == t_c / period {
+                    let ext = tick_extend::extend(wraps_at_read as u32, false, low, bits);
+                    assert_eq!(ext, t_c, "bits {bits}, t_c {t_c}, read {t_r}, up to date");
+                    checked += 1;
+                }
+                // The last wrap (at `wraps_at_read * period`) flagged, not counted.
+                let last_wrap = wraps_at_read * period;
+                if wraps_at_read >= 1 && t_r - last_wrap < half {
+                    let counted = (wraps_at_read - 1) as u32;
+                    let ext = tick_extend::extend(counted, true, low, bits);
+                    assert_eq!(ext, t_c, "bits {bits}, t_c {t_c}, read {t_r}, wrap pending");
+                    checked += 1;
+                }
+            }
+        }
+        assert!(
+            checked as u64 > 6 * period * half / 2,
+            "too few cases checked"
+        );
+    }
+    // The TIM5 clock reads its counter directly (delay 0) at full width.
+    assert_eq!(tick_extend::extend(3, false, 7, 32), (3 << 32) + 7);
+    assert_eq!(tick_extend::extend(3, true, 7, 32), (4 << 32) + 7);
+    assert_eq!(
+        tick_extend::extend(3, true, u32::MAX, 32),
+        (3 << 32) + u64::from(u32::MAX)
     );
 }

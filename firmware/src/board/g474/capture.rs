@@ -23,6 +23,7 @@ use embassy_sync::channel::Channel;
 
 use super::pins::{FeedbackPins, FEEDBACK_CHANNELS, FEEDBACK_PIN_NUMBERS};
 use super::timebase::STROBE_TRIGGER;
+use crate::tick_extend::extend;
 
 /// Captures buffered between the IRQ and the sequencer task.
 pub const CAPTURE_QUEUE_LEN: usize = 64;
@@ -175,19 +176,13 @@ impl Handler<Tim3Irq> for CaptureIrq {
             }
             let lost = sr.ccof(ch);
             let low = r.ccr(ch).read().ccr(); // reading CCRx clears CCxIF
-                                              // A wrap pending in this pass and a small value: the capture came
-                                              // after the wrap. (A capture before a wrap has a large value: the
-                                              // IRQ runs well within half a TIM3 period of it.)
-            let high = if sr.uif() && low < 0x8000 {
-                wraps + 1
-            } else {
-                wraps
-            };
             let level = !LEVEL[ch].load(Ordering::Relaxed);
             LEVEL[ch].store(level, Ordering::Relaxed);
             let cap = RawCapture {
                 channel: ch as u8,
-                ticks_since_strobe: (u64::from(high) << 16) | u64::from(low),
+                // A wrap pending in this pass is counted below; captures
+                // latched after it carry it already (tick_extend.rs).
+                ticks_since_strobe: extend(wraps, sr.uif(), u32::from(low), 16),
                 level_high: level,
                 lost_before: lost || LOST[ch].load(Ordering::Relaxed),
             };

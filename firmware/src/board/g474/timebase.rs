@@ -16,6 +16,8 @@ use embassy_stm32::peripherals::TIM5;
 use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::Peri;
 
+use crate::tick_extend::extend;
+
 /// TIM2/TIM3 select TIM5's TRGO as ITR4 on the G4 (RM0440 "TIMx internal
 /// trigger connection": ITR0 TIM1, ITR1 TIM2, ITR2 TIM3, ITR3 TIM4, ITR4 TIM5).
 pub const STROBE_TRIGGER: pac::timer::vals::Ts = pac::timer::vals::Ts::ITR4;
@@ -98,10 +100,8 @@ fn now_ticks_locked() -> u64 {
     let r = pac::TIM5;
     let wraps = WRAPS.load(Ordering::Relaxed);
     let cnt = r.cnt().read();
-    // A wrap the IRQ has not counted yet: UIF pending and CNT small.
-    let pending = r.sr().read().uif() && cnt < 0x8000_0000;
-    let high = u64::from(wraps) + u64::from(pending);
-    (high << 32) | u64::from(cnt)
+    // A wrap the IRQ has not counted yet shows as UIF (tick_extend.rs).
+    extend(wraps, r.sr().read().uif(), cnt, 32)
 }
 
 /// Binds to TIM5's interrupt: counts wraps.
