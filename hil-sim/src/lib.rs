@@ -4,6 +4,7 @@
 //! devices, the digital twin.)
 #![warn(missing_docs)]
 
+pub mod board;
 pub mod clock;
 pub mod devices;
 pub mod faults;
