@@ -10,3 +10,4 @@ pub mod devices;
 pub mod faults;
 pub mod pty;
 pub mod sim_hardware;
+pub mod soak;
