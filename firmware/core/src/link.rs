@@ -131,7 +131,10 @@ impl Dispatcher {
                 Response::Armed
             }
             Request::Start { delay_ns } => {
-                let delay = ns_to_ticks(*delay_ns as u64, self.info.limits.timer_clock_hz);
+                // A start sooner than the board can arm is moved out, the same on
+                // silicon and in simulation.
+                let delay = ns_to_ticks(*delay_ns as u64, self.info.limits.timer_clock_hz)
+                    .max(self.info.limits.min_start_delay_ticks as u64);
                 let start_tick = self.sequencer.start(hw, delay)?;
                 Response::Started { start_tick }
             }
