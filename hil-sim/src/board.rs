@@ -146,8 +146,19 @@ impl SimBoard {
         (&self.to_board, &self.to_host)
     }
 
+    /// Whether the board has vanished (fault `vanish_at_tick` reached).
+    pub fn has_vanished(&self) -> bool {
+        self.config
+            .faults
+            .vanish_at_tick
+            .is_some_and(|tick| self.hw.now_ticks() >= tick)
+    }
+
     /// Bytes from the host, any chunking.
     pub fn receive(&mut self, bytes: &[u8]) {
+        if self.has_vanished() {
+            return;
+        }
         let mut survived = Vec::with_capacity(bytes.len());
         self.to_board.apply(bytes, &mut survived);
         self.sniff_requests(&survived);
@@ -158,9 +169,12 @@ impl SimBoard {
     }
 
     /// Whether [`SimBoard::step`] would move virtual time now: a scan runs
-    /// and the host is keeping up with the output.
+    /// and the host is keeping up with the output. A vanished board is
+    /// frozen: nothing it did after could reach anyone.
     pub fn can_step(&self) -> bool {
-        self.state() == ScanState::Running && self.output.len() < MAX_QUEUED_OUTPUT
+        self.state() == ScanState::Running
+            && self.output.len() < MAX_QUEUED_OUTPUT
+            && !self.has_vanished()
     }
 
     /// Moves virtual time to the next thing that happens in the running scan
@@ -171,11 +185,15 @@ impl SimBoard {
             return false;
         }
         let now = self.hw.now_ticks();
-        let next = self
+        let mut next = self
             .hw
             .next_event_tick()
             .unwrap_or(now + TAIL_STEP_TICKS)
             .max(now);
+        if let Some(vanish) = self.config.faults.vanish_at_tick.filter(|&t| t > now) {
+            // Stop exactly there, so the board falls silent at that tick.
+            next = next.min(vanish);
+        }
         self.hw.advance_to(next);
         let mut frames = Vec::new();
         self.link
@@ -202,6 +220,9 @@ impl SimBoard {
     /// Queues frames for the host through the to-host faults, and applies a
     /// committed plan's heads to the rig.
     fn send(&mut self, frames: Vec<Vec<u8>>) {
+        if self.has_vanished() {
+            return;
+        }
         let mut filtered = Vec::new();
         for frame in frames {
             if self.answers_commit(&frame) {
@@ -436,6 +457,27 @@ mod tests {
         );
         let second = call(&mut board, 1, Request::Ping { nonce: 9 });
         assert_eq!(response(&second, 1), Response::Pong { nonce: 9 });
+    }
+
+    #[test]
+    fn vanished_board_says_nothing_more() {
+        let faults = FaultPlan {
+            vanish_at_tick: Some(1_000_000),
+            ..FaultPlan::none()
+        };
+        let mut board = SimBoard::new(SimBoardConfig { seed: 0, faults });
+        start(&mut board, &examples::multiplexed_24_at_5khz(3));
+        board.run_scan();
+        assert!(board.has_vanished());
+        assert_eq!(board.hardware().now_ticks(), 1_000_000);
+        let after = drain(&mut board);
+        assert!(
+            !after
+                .iter()
+                .any(|f| matches!(f, BoardFrame::Event(Event::ScanFinished { .. }))),
+            "{after:?}"
+        );
+        assert!(call(&mut board, 7, Request::Ping { nonce: 1 }).is_empty());
     }
 
     #[test]

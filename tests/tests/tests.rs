@@ -1,2 +1,5 @@
 //! Cross-crate integration tests, built as one binary (as in ripgrep/tests).
 //! Each module says what it covers.
+
+mod faults;
+mod sync_chain;

@@ -13,7 +13,7 @@ use protocol::limits::MAX_FRAME_BYTES;
 use protocol::{
     decode_payload, encode_frame, BoardFrame, BoardStatus, DeviceInfo, Event, Exposure,
     FrameAccumulator, FrameError, HostFrame, PlanHeader, PlanSummary, Request, RequestId, Response,
-    ScanReport, PROTOCOL_VERSION,
+    ScanReport, WireError, PROTOCOL_VERSION,
 };
 
 use super::error::{BoardError, LinkError};
@@ -73,6 +73,8 @@ pub struct LinkStats {
     pub corrupt_frames: u64,
     /// `LinkError` frames: the board could not read something we sent.
     pub board_link_errors: u64,
+    /// The last of those complaints.
+    pub last_board_link_error: Option<WireError>,
     /// Answers to requests no longer waited for (late duplicates).
     pub stale_responses: u64,
 }
@@ -210,7 +212,7 @@ impl<T: Transport> BoardClient<T> {
                 match item {
                     Ok(BoardFrame::Event(event)) => self.events.push_back(event),
                     Ok(BoardFrame::Response { .. }) => self.stats.stale_responses += 1,
-                    Ok(BoardFrame::LinkError(_)) => self.stats.board_link_errors += 1,
+                    Ok(BoardFrame::LinkError(error)) => self.note_link_error(error),
                     Err(_) => self.stats.corrupt_frames += 1,
                 }
             }
@@ -262,7 +264,7 @@ impl<T: Transport> BoardClient<T> {
                         Ok(BoardFrame::Response { .. }) => self.stats.stale_responses += 1,
                         Ok(BoardFrame::Event(event)) => self.events.push_back(event),
                         Ok(BoardFrame::LinkError(error)) => {
-                            self.stats.board_link_errors += 1;
+                            self.note_link_error(error);
                             unreadable = Some(error);
                         }
                         Err(_) => {
@@ -309,6 +311,11 @@ impl<T: Transport> BoardClient<T> {
         .into())
     }
 
+    fn note_link_error(&mut self, error: WireError) {
+        self.stats.board_link_errors += 1;
+        self.stats.last_board_link_error = Some(error);
+    }
+
     /// Reads what arrives within `timeout` and decodes the frames it completes.
     fn read_frames(
         &mut self,
@@ -344,7 +351,7 @@ pub fn request_name(request: &Request) -> &'static str {
 mod tests {
     use super::*;
     use crate::board::transport::ChannelTransport;
-    use protocol::{BoardLimits, FirmwareVersion, ResetCause, WireError};
+    use protocol::{BoardLimits, FirmwareVersion, ResetCause};
     use std::thread::JoinHandle;
 
     const SHORT: ClientConfig = ClientConfig {
