@@ -2,6 +2,7 @@
 //! board that `--sim` starts on a pseudo-terminal (the same serial client
 //! either way).
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -67,16 +68,32 @@ struct Connection {
     baud: u32,
 }
 
-/// Runs `slscan board`.
+/// Runs `slscan board`. Output goes to stdout; a closed pipe (`| head`)
+/// ends the command quietly.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    match run_command(args) {
+        Err(err)
+            if err
+                .downcast_ref::<std::io::Error>()
+                .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(())
+        }
+        other => other,
+    }
+}
+
+fn run_command(args: Args) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
     match args.command {
         BoardCommand::Info(args) => with_board(&args.connection, |client, info| {
-            print_info(info);
+            print_info(&mut out, info)?;
             let status = client.status().context("reading the board status")?;
-            println!(
+            writeln!(
+                out,
                 "state           {:?} at tick {}",
                 status.state, status.now_tick
-            );
+            )?;
             Ok(())
         }),
         BoardCommand::RunPlan(args) => {
@@ -84,10 +101,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let delay_ns = args.start_delay_us.saturating_mul(1_000);
             with_board(&args.connection, |client, info| {
                 let hz = info.limits.timer_clock_hz;
+                let mut printed = Ok(());
                 let outcome = client
-                    .run_plan(&plan, delay_ns, |event| print_event(event, hz))
+                    .run_plan(&plan, delay_ns, |event| {
+                        if printed.is_ok() {
+                            printed = print_event(&mut out, event, hz);
+                        }
+                    })
                     .with_context(|| format!("running plan {}", args.plan.display()))?;
-                print_outcome(&outcome, hz);
+                printed?;
+                print_outcome(&mut out, &outcome, hz)?;
                 check_outcome(&outcome)
             })
         }
@@ -134,27 +157,31 @@ fn with_board(
     result
 }
 
-fn print_info(info: &DeviceInfo) {
+fn print_info(out: &mut impl Write, info: &DeviceInfo) -> std::io::Result<()> {
     let v = info.firmware_version;
     let l = info.limits;
-    println!("protocol        {}", info.protocol_version);
-    println!("firmware        {}.{}.{}", v.major, v.minor, v.patch);
-    println!("board id        {:#018x}", info.board_id);
-    println!("reset cause     {:?}", info.reset_cause);
-    println!(
+    writeln!(out, "protocol        {}", info.protocol_version)?;
+    writeln!(out, "firmware        {}.{}.{}", v.major, v.minor, v.patch)?;
+    writeln!(out, "board id        {:#018x}", info.board_id)?;
+    writeln!(out, "reset cause     {:?}", info.reset_cause)?;
+    writeln!(
+        out,
         "timer clock     {} MHz ({:.3} ns per tick)",
         l.timer_clock_hz as f64 / 1e6,
         1e9 / l.timer_clock_hz as f64
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "channels        {} trigger outputs, {} feedback inputs",
         l.output_channels, l.feedback_channels
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "capacity        {} exposures, {} pattern slots per cycle, {} repeats, frames <= {} B",
         l.max_exposures, l.max_slots_per_cycle, l.max_repeat_count, l.max_frame_bytes
-    );
-    println!("edge spacing    >= {} ticks", l.min_edge_spacing_ticks);
+    )?;
+    writeln!(out, "edge spacing    >= {} ticks", l.min_edge_spacing_ticks)?;
+    Ok(())
 }
 
 /// Board ticks as microseconds, for people.
@@ -162,53 +189,63 @@ fn ticks_us(ticks: u64, hz: u32) -> f64 {
     ticks as f64 * 1e6 / hz.max(1) as f64
 }
 
-fn print_event(event: &Event, hz: u32) {
+fn print_event(out: &mut impl Write, event: &Event, hz: u32) -> std::io::Result<()> {
     match *event {
         Event::StateChanged { state, tick } => {
-            println!("event  tick {tick:>14}  state -> {state:?}")
+            writeln!(out, "event  tick {tick:>14}  state -> {state:?}")
         }
         Event::FeedbackLate {
-            feedback_channel,
+            feedback_channel: ch,
             level,
             cycle,
             expected_tick,
             measured_tick,
-        } => println!(
-            "event  tick {measured_tick:>14}  feedback {feedback_channel} {level:?} LATE in cycle {cycle}: \
-             {:+.3} us",
-            (measured_tick as f64 - expected_tick as f64) * 1e6 / hz.max(1) as f64
-        ),
+        } => {
+            let error_us = (measured_tick as f64 - expected_tick as f64) * 1e6 / hz.max(1) as f64;
+            writeln!(
+                out,
+                "event  tick {measured_tick:>14}  feedback {ch} {level:?} LATE in cycle {cycle}: \
+                 {error_us:+.3} us"
+            )
+        }
         Event::FeedbackMissing {
-            feedback_channel,
+            feedback_channel: ch,
             level,
             cycle,
             expected_tick,
-        } => println!(
-            "event  tick {expected_tick:>14}  feedback {feedback_channel} {level:?} MISSING in cycle {cycle}"
+        } => writeln!(
+            out,
+            "event  tick {expected_tick:>14}  feedback {ch} {level:?} MISSING in cycle {cycle}"
         ),
         Event::FeedbackUnexpected {
-            feedback_channel,
+            feedback_channel: ch,
             level,
             measured_tick,
-        } => println!("event  tick {measured_tick:>14}  feedback {feedback_channel} {level:?} UNEXPECTED"),
-        Event::ScanFinished { state, .. } => println!("event  scan finished: {state:?}"),
+        } => writeln!(
+            out,
+            "event  tick {measured_tick:>14}  feedback {ch} {level:?} UNEXPECTED"
+        ),
+        Event::ScanFinished { state, .. } => writeln!(out, "event  scan finished: {state:?}"),
     }
 }
 
-fn print_outcome(outcome: &ScanOutcome, hz: u32) {
+fn print_outcome(out: &mut impl Write, outcome: &ScanOutcome, hz: u32) -> std::io::Result<()> {
     let s = outcome.summary;
     let r = outcome.report;
-    println!(
+    writeln!(
+        out,
         "plan            {} edges per cycle, period {} ticks ({:.3} us), {} cycles",
         s.edges_per_cycle,
         s.period_ticks,
         ticks_us(s.period_ticks as u64, hz),
         s.repeat_count
-    );
-    println!("started         tick {}", outcome.start_tick);
-    println!("ended           {:?}", outcome.state);
-    println!(
-        "feedback        {} expected, {} on time, {} late, {} missing, {} unexpected; worst error {} ticks ({:.3} us)",
+    )?;
+    writeln!(out, "started         tick {}", outcome.start_tick)?;
+    writeln!(out, "ended           {:?}", outcome.state)?;
+    writeln!(
+        out,
+        "feedback        {} expected, {} on time, {} late, {} missing, {} unexpected; \
+         worst error {} ticks ({:.3} us)",
         r.expected,
         r.on_time,
         r.late,
@@ -216,10 +253,15 @@ fn print_outcome(outcome: &ScanOutcome, hz: u32) {
         r.unexpected,
         r.worst_error_ticks,
         ticks_us(r.worst_error_ticks as u64, hz)
-    );
+    )?;
     if r.events_dropped > 0 {
-        println!("events dropped  {} (counters stay exact)", r.events_dropped);
+        writeln!(
+            out,
+            "events dropped  {} (counters stay exact)",
+            r.events_dropped
+        )?;
     }
+    Ok(())
 }
 
 /// A scan that did not finish, or whose feedback deviated, is a failure.
