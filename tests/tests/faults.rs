@@ -13,9 +13,9 @@ use integration_tests::{pty_rig, recorded_edges, PtyRig, IMPATIENT, PATIENT};
 use protocol::limits::{ns_to_ticks, MAX_FRAME_BYTES};
 use protocol::plan::examples;
 use protocol::{encode_frame, Event, FrameError, HostFrame, Level, Request, ScanState, WireError};
-use slscan::board::{BoardError, LinkError, Transport};
+use slscan::board::{BoardError, ClientConfig, LinkError, Transport};
 
-fn rig(faults: FaultPlan, client: slscan::board::ClientConfig) -> PtyRig {
+fn rig(faults: FaultPlan, client: ClientConfig) -> PtyRig {
     pty_rig(SimBoardConfig { seed: 5, faults }, client).expect("simulated board on a pty")
 }
 
@@ -136,14 +136,21 @@ fn lost_answer_to_start_is_replayed_not_refused() {
 
     let mut faults = FaultPlan::none();
     faults.to_host.flip_bits = [(offset + 3, 1)].into();
-    let mut rig = rig(faults, IMPATIENT);
+    // Short timeouts (the lost answer costs one), many attempts (a loaded
+    // machine may need more than one).
+    let config = ClientConfig {
+        attempt_timeout: Duration::from_millis(300),
+        attempts: 5,
+    };
+    let mut rig = rig(faults, config);
     let outcome = rig
         .client
         .run_plan(&plan, 1_000_000, |_| {})
         .expect("a lost answer is retried and the board replays it");
     assert!(outcome.is_clean(), "{outcome:?}");
     let stats = rig.client.stats();
-    assert_eq!((stats.corrupt_frames, stats.retries), (1, 1), "{stats:?}");
+    assert_eq!(stats.corrupt_frames, 1, "{stats:?}");
+    assert!(stats.retries >= 1, "{stats:?}");
     // The scan ran exactly once: each edge of the 2 cycles once.
     assert_eq!(recorded_edges(&rig.board).len(), 2 * 25 * 2);
 }
@@ -261,7 +268,11 @@ fn noisy_link_only_ever_gives_answers_or_link_errors() {
     let board = hil_sim::board::spawn_on_pty(SimBoardConfig { seed: 5, faults }).expect("pty");
     let path = board.path().expect("path").to_path_buf();
     let transport = slscan::board::SerialTransport::open(&path, 115_200).expect("open pty");
-    let mut client = slscan::board::BoardClient::new(transport, IMPATIENT);
+    let config = ClientConfig {
+        attempt_timeout: Duration::from_millis(500),
+        attempts: 3,
+    };
+    let mut client = slscan::board::BoardClient::new(transport, config);
     let mut answered = 0;
     for nonce in 0..40 {
         match client.ping(nonce) {

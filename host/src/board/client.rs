@@ -1,8 +1,9 @@
 //! The typed board client: one method per request, over any [`Transport`].
 //!
-//! Each request gets a fresh id; a retry (after a timeout) re-sends the same
-//! frame with the same id, so whichever copy the board answers pairs with the
-//! question. Events that arrive while a request waits are queued for
+//! Each request gets a fresh id; a retry (after a timeout, or at once when
+//! the board reports an unreadable frame) re-sends the same frame with the
+//! same id, so whichever copy the board answers pairs with the question, and
+//! the board answers a repeated id from its cache instead of running it twice. Events that arrive while a request waits are queued for
 //! [`BoardClient::next_event`]. Timeouts are the only thing measured with the
 //! host's clock; scan timing comes from the board's own ticks.
 
@@ -67,7 +68,8 @@ impl Default for ClientConfig {
 pub struct LinkStats {
     /// Requests sent (not counting retries).
     pub requests: u64,
-    /// Extra attempts after a timeout.
+    /// Extra attempts (after a timeout, or the board saying it could not
+    /// read a frame).
     pub retries: u64,
     /// Frames from the board that failed COBS, CRC or decoding.
     pub corrupt_frames: u64,
@@ -248,11 +250,14 @@ impl<T: Transport> BoardClient<T> {
             }
             self.transport.send(frame)?;
             let deadline = Instant::now() + self.config.attempt_timeout;
-            // A `LinkError` from the board does not by itself mean our frame
-            // was lost (it may be about earlier garbage); its answer may still
-            // come, so the attempt waits out its time before re-sending.
+            // The board answers every frame it reads, and a retry of an id it
+            // already answered gets that same answer again (board-core keeps
+            // the last one), so when the board says it could not read a frame
+            // the client re-sends at once instead of waiting out the attempt:
+            // if the complaint was about other bytes, the copy costs nothing.
+            unreadable = None;
             while let Some(left) = deadline.checked_duration_since(Instant::now()) {
-                if left.is_zero() {
+                if left.is_zero() || unreadable.is_some() {
                     break;
                 }
                 let mut answer = None;
@@ -529,18 +534,40 @@ mod tests {
                 corrupt,
                 answer(f.id.wrapping_add(100), Response::Armed),
                 frame(&BoardFrame::Event(event)),
-                frame(&BoardFrame::LinkError(WireError::Frame(FrameError::Cobs))),
                 answer(f.id, Response::Pong { nonce: 3 }),
+                frame(&BoardFrame::LinkError(WireError::Frame(FrameError::Cobs))),
             ]
         });
         client.ping(3).unwrap();
         let stats = client.stats();
         assert_eq!(stats.corrupt_frames, 1);
         assert_eq!(stats.stale_responses, 1);
-        assert_eq!(stats.board_link_errors, 1);
         assert_eq!(stats.retries, 0);
         assert_eq!(client.next_event(Duration::ZERO).unwrap(), Some(event));
-        assert_eq!(client.next_event(Duration::from_millis(1)).unwrap(), None);
+        // The complaint after the answer is read while waiting for events.
+        assert_eq!(client.next_event(Duration::from_millis(50)).unwrap(), None);
+        assert_eq!(client.stats().board_link_errors, 1);
+        finish(client, board);
+    }
+
+    #[test]
+    fn unreadable_frame_is_resent_at_once() {
+        // The first copy "arrives garbled"; the second is answered. With a
+        // long attempt timeout, only an immediate re-send finishes quickly.
+        let (mut client, board) = scripted_board(|n, f| match n {
+            0 => vec![frame(&BoardFrame::LinkError(WireError::Frame(
+                FrameError::Cobs,
+            )))],
+            _ => vec![answer(f.id, Response::Pong { nonce: 4 })],
+        });
+        client.set_config(ClientConfig {
+            attempt_timeout: Duration::from_secs(60),
+            attempts: 2,
+        });
+        let asked = Instant::now();
+        client.ping(4).unwrap();
+        assert!(asked.elapsed() < Duration::from_secs(30));
+        assert_eq!(client.stats().retries, 1);
         finish(client, board);
     }
 
