@@ -44,11 +44,14 @@ pub struct Noise {
 }
 
 /// A camera that misses one trigger.
+///
+/// Triggers are counted per camera from the last plan commit (the simulated
+/// rig is rebuilt for each committed plan).
 #[derive(
     Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
 )]
 pub struct MissedTrigger {
-    /// Which camera line (index into the board's camera lines).
+    /// Which head's camera (0 = head A).
     pub camera: u8,
     /// Which of the triggers that camera receives (0-based) it misses.
     pub trigger_index: u64,
@@ -63,6 +66,10 @@ pub struct FaultPlan {
     pub to_host: StreamFaults,
     /// Triggers the cameras miss.
     pub missed_triggers: BTreeSet<MissedTrigger>,
+    /// The board vanishes (hears and says nothing more, like a board whose
+    /// USB died) once its virtual clock reaches this tick: "goes silent
+    /// mid-scan" at a point fixed in board time, whatever the host's pace.
+    pub vanish_at_tick: Option<u64>,
 }
 
 impl FaultPlan {

@@ -4,8 +4,10 @@
 //! devices, the digital twin.)
 #![warn(missing_docs)]
 
+pub mod board;
 pub mod clock;
 pub mod devices;
 pub mod faults;
 pub mod pty;
 pub mod sim_hardware;
+pub mod soak;

@@ -138,6 +138,7 @@ pub struct SimHardware {
     lost_captures: u32,
     recording: bool,
     recorded: Vec<RecordedEdge>,
+    captured: Vec<Capture>,
 }
 
 impl SimHardware {
@@ -158,6 +159,7 @@ impl SimHardware {
             lost_captures: 0,
             recording: true,
             recorded: Vec::new(),
+            captured: Vec::new(),
         }
     }
 
@@ -185,6 +187,17 @@ impl SimHardware {
     /// Every output edge so far, in time order.
     pub fn recorded(&self) -> &[RecordedEdge] {
         &self.recorded
+    }
+
+    /// Every capture made readable so far (while recording), in time order.
+    pub fn captures_log(&self) -> &[Capture] {
+        &self.captured
+    }
+
+    /// Forgets the output edge and capture logs.
+    pub fn clear_log(&mut self) {
+        self.recorded.clear();
+        self.captured.clear();
     }
 
     /// Takes the recorded output edges, leaving none.
@@ -234,11 +247,15 @@ impl SimHardware {
             if self.ready.len() >= self.capture_capacity {
                 self.lost_captures += 1;
             } else {
-                self.ready.push_back(Capture {
+                let capture = Capture {
                     feedback_channel: channel,
                     level,
                     tick: t,
-                });
+                };
+                if self.recording {
+                    self.captured.push(capture);
+                }
+                self.ready.push_back(capture);
             }
         }
         self.clock.advance_to(tick);

@@ -2,3 +2,5 @@
 //!
 //! (Being written.)
 #![warn(missing_docs)]
+
+pub mod board;

@@ -59,6 +59,10 @@ pub struct BoardLimits {
     /// cycle start to a channel's first edge and across the cycle wrap (the
     /// STM32's DMA must rewrite the compare register in between: 1 us).
     pub min_edge_spacing_ticks: u32,
+    /// Shortest delay from a `Start` request to the first cycle: the board
+    /// arms a hardware compare after decoding the request, so a nearer
+    /// start is moved out to this (STM32G474: 100 us), on every board alike.
+    pub min_start_delay_ticks: u32,
 }
 
 impl BoardLimits {
@@ -73,6 +77,7 @@ impl BoardLimits {
         max_slots_per_cycle: MAX_SLOTS_PER_CYCLE as u16,
         max_repeat_count: 1_000_000,
         min_edge_spacing_ticks: 170,
+        min_start_delay_ticks: 17_000,
     };
 }
 

@@ -76,9 +76,10 @@ pub enum Request {
     CommitPlan,
     /// Load the compiled edge table into the timers.
     Arm,
-    /// Start the armed scan `delay_ns` from now (board time).
+    /// Start the armed scan `delay_ns` from now (board time), or after
+    /// `BoardLimits::min_start_delay_ticks` if that is later.
     Start {
-        /// Delay before the first edge.
+        /// Delay before the first cycle.
         delay_ns: u32,
     },
     /// Stop now: all outputs to idle.

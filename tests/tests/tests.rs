@@ -1,4 +1,6 @@
 //! Cross-crate integration tests, built as one binary (as in ripgrep/tests).
 //! Each module says what it covers.
 
+mod faults;
 mod firmware_parity;
+mod sync_chain;

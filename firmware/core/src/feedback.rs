@@ -156,16 +156,18 @@ impl LineCursor {
 
     /// How far past an expected edge a capture may come and still be
     /// attributed to it (as late): half the gap to the line's next expected
-    /// edge, at least the tolerance.
+    /// edge (half a cycle after the last one), at least the tolerance.
     pub fn late_limit(&self, table: &EdgeTable, line: &FeedbackLine, start_tick: u64) -> u64 {
         let Some(now) = self.peek(table, line, start_tick) else {
             return line.tolerance_ticks as u64;
         };
         let mut next = *self;
         next.advance(table, line);
+        // The scan's last edge has no successor: allow half a cycle, so a
+        // missing last edge is still declared, soon after the scan ends.
         let half_gap = next
             .peek(table, line, start_tick)
-            .map_or(u64::MAX / 4, |n| (n.tick - now.tick) / 2);
+            .map_or(table.period_ticks() as u64 / 2, |n| (n.tick - now.tick) / 2);
         half_gap.max(line.tolerance_ticks as u64)
     }
 }

@@ -13,7 +13,7 @@
 use protocol::limits::{ns_to_ticks, MAX_FRAME_BYTES};
 use protocol::{
     decode_payload, encode_frame, BoardFrame, BoardStatus, DeviceInfo, FrameAccumulator, HostFrame,
-    PlanSummary, Request, Response, ScanPlan, WireError, PROTOCOL_VERSION,
+    PlanSummary, Request, RequestId, Response, ScanPlan, WireError, PROTOCOL_VERSION,
 };
 
 use crate::hardware::TriggerHardware;
@@ -32,6 +32,7 @@ pub struct Dispatcher {
     info: DeviceInfo,
     upload: Option<Upload>,
     sequencer: Sequencer,
+    last_answer: Option<(RequestId, Response)>,
 }
 
 impl Dispatcher {
@@ -41,6 +42,7 @@ impl Dispatcher {
             info,
             upload: None,
             sequencer: Sequencer::new(),
+            last_answer: None,
         }
     }
 
@@ -59,7 +61,28 @@ impl Dispatcher {
         &mut self.sequencer
     }
 
-    /// Answers one request.
+    /// Answers the request of frame `id`. A repeat of the last id is a
+    /// retry whose answer was lost: it gets the same answer again without
+    /// running twice (a retried `AddExposure` or `Start` would otherwise be
+    /// refused). `Hello` always runs and forgets the last answer, so a new
+    /// host session may reuse ids.
+    pub fn handle_frame<H: TriggerHardware>(
+        &mut self,
+        id: RequestId,
+        request: &Request,
+        hw: &mut H,
+    ) -> Response {
+        if let Some((last_id, answer)) = &self.last_answer {
+            if *last_id == id && !matches!(request, Request::Hello { .. }) {
+                return answer.clone();
+            }
+        }
+        let answer = self.handle(request, hw);
+        self.last_answer = Some((id, answer.clone()));
+        answer
+    }
+
+    /// Answers one request (no retry detection; see [`Dispatcher::handle_frame`]).
     pub fn handle<H: TriggerHardware>(&mut self, request: &Request, hw: &mut H) -> Response {
         match self.try_handle(request, hw) {
             Ok(response) => response,
@@ -108,7 +131,10 @@ impl Dispatcher {
                 Response::Armed
             }
             Request::Start { delay_ns } => {
-                let delay = ns_to_ticks(*delay_ns as u64, self.info.limits.timer_clock_hz);
+                // A start sooner than the board can arm is moved out, the same on
+                // silicon and in simulation.
+                let delay = ns_to_ticks(*delay_ns as u64, self.info.limits.timer_clock_hz)
+                    .max(self.info.limits.min_start_delay_ticks as u64);
                 let start_tick = self.sequencer.start(hw, delay)?;
                 Response::Started { start_tick }
             }
@@ -184,7 +210,7 @@ impl Link {
             let answer = match frame.and_then(decode_payload::<HostFrame>) {
                 Ok(HostFrame { id, request }) => BoardFrame::Response {
                     id,
-                    response: dispatcher.handle(&request, hw),
+                    response: dispatcher.handle_frame(id, &request, hw),
                 },
                 Err(error) => BoardFrame::LinkError(WireError::Frame(error)),
             };

@@ -134,6 +134,11 @@ pub fn random_plan(kind: PlanKind, bits: &mut impl Bits) -> ScanPlan {
     plan
 }
 
+/// Validation checks limits in played (170 MHz) ticks, where rounding each
+/// end of an interval moves it by up to one tick (5.9 ns): generated
+/// intervals get that much above their limit, no more.
+const TICK_HEADROOM_NS: u64 = 6;
+
 struct Shape {
     p: ProjectorProfile,
     c: CameraProfile,
@@ -147,7 +152,7 @@ impl Shape {
     fn first_offset(&self) -> u64 {
         let need = self.c.latency_ns as u64 + self.c.jitter_ns as u64 + self.margin_ns;
         let have = (self.p.latency_ns - self.p.jitter_ns) as u64;
-        need.saturating_sub(have)
+        need.saturating_sub(have) + TICK_HEADROOM_NS
     }
 
     /// Duration and slots of one exposure.
@@ -183,6 +188,7 @@ impl Shape {
         let duration = (light_end + self.margin_ns)
             .saturating_sub(exposure_light_lag)
             .max(self.c.min_exposure_ns as u64)
+            + TICK_HEADROOM_NS
             + bits.slack(10_000);
         (duration, slots)
     }
@@ -191,8 +197,7 @@ impl Shape {
     fn next_start(&self, bits: &mut impl Bits, start: u64, end: u64) -> u64 {
         let by_gap = end + self.c.min_gap_ns as u64;
         let by_rate = start + self.c.min_frame_period_ns as u64;
-        // One tick of headroom: validation also checks the played ticks.
-        by_gap.max(by_rate) + 6 + bits.slack(50_000)
+        by_gap.max(by_rate) + TICK_HEADROOM_NS + bits.slack(50_000)
     }
 }
 

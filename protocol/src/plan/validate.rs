@@ -365,6 +365,14 @@ fn spaced(later: Instant, earlier: Instant, min_ns: u32, hz: u32) -> bool {
         && later.ticks >= earlier.ticks + ns_to_ticks_ceil(min_ns as u64, hz)
 }
 
+/// Whether `later.0` as the board plays it (whole ticks) plus `later.1` ns
+/// comes no sooner than `earlier.0` played plus `earlier.1` ns; exact, in
+/// units of 1 / (1e9 * hz) s, so tick rounding cannot eat into a margin.
+fn played_at_least(later: (u64, i64), earlier: (u64, i64), hz: u32) -> bool {
+    let ticks = ns_to_ticks(later.0, hz) as i128 - ns_to_ticks(earlier.0, hz) as i128;
+    ticks * 1_000_000_000 >= (earlier.1 - later.1) as i128 * hz as i128
+}
+
 /// `earlier` carries a shift subtracted from its times (the repeat period
 /// for the cycle wrap).
 fn check_camera_pair(
@@ -401,14 +409,19 @@ fn check_projector(plan: &ScanPlan, head: usize, hz: u32) -> Result<(), PlanErro
     // previous pattern of this projector.
     let mut previous: Option<(u64, u64)> = None;
     for (i, e) in exposures_of(plan, head) {
-        // The window the camera integrates, where the pattern's light must fall.
-        let light_from = e.start_ns as i64
-            + camera.latency_ns as i64
-            + camera.jitter_ns as i64
-            + plan.margin_ns as i64;
-        let light_to = e.start_ns as i64 + e.duration_ns as i64 + camera.latency_ns as i64
-            - camera.jitter_ns as i64
-            - plan.margin_ns as i64;
+        // The camera integrates from its trigger's rise + latency (late by
+        // up to the jitter) to its fall + latency (early by up to the
+        // jitter); the pattern's light, from its trigger + latency (early by
+        // up to the jitter) to display end + latency (late by the jitter),
+        // must fall inside with the margin to spare.
+        let (margin, p_lat, p_jit) = (
+            plan.margin_ns as i64,
+            projector.latency_ns as i64,
+            projector.jitter_ns as i64,
+        );
+        let (c_lat, c_jit) = (camera.latency_ns as i64, camera.jitter_ns as i64);
+        let exposure_start = e.start_ns as u64;
+        let exposure_end = e.start_ns as u64 + e.duration_ns as u64;
         for (s, slot) in plan.slots_of(e).iter().enumerate() {
             let slot_index = s as u16;
             let trigger = e.start_ns as u64 + slot.offset_ns as u64;
@@ -439,11 +452,17 @@ fn check_projector(plan: &ScanPlan, head: usize, hz: u32) -> Result<(), PlanErro
                     min_ns: projector.min_pattern_period_ns,
                 });
             }
-            let shown_from =
-                trigger as i64 + projector.latency_ns as i64 - projector.jitter_ns as i64;
-            let shown_to =
-                display_end as i64 + projector.latency_ns as i64 + projector.jitter_ns as i64;
-            if shown_from < light_from || shown_to > light_to {
+            let starts_inside = played_at_least(
+                (trigger, p_lat - p_jit),
+                (exposure_start, c_lat + c_jit + margin),
+                hz,
+            );
+            let ends_inside = played_at_least(
+                (exposure_end, c_lat - c_jit - margin),
+                (trigger, slot.display_ns as i64 + p_lat + p_jit),
+                hz,
+            );
+            if !starts_inside || !ends_inside {
                 return Err(PlanError::PatternOutsideExposure {
                     exposure: i,
                     slot: slot_index,

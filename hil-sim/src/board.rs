@@ -1,0 +1,490 @@
+//! The simulated sync board: the firmware's own `board_core::Link` driving
+//! [`SimHardware`] on the virtual 170 MHz clock, with fault injection on its
+//! serial bytes. Sans-I/O: [`serve`] connects it to a pty or to channels.
+//!
+//! ```text
+//! host bytes --to_board faults--> Link::receive --> Dispatcher --> SimHardware
+//!                                                                  (devices, clock)
+//! host <--to_host faults-- output queue <-- frames <-- Link::poll <--+
+//! ```
+//!
+//! Virtual time moves only while a scan runs, edge by edge
+//! ([`SimHardware::next_event_tick`]), never with the wall clock, so a
+//! scan's timeline (and every tick the board reports) is the same on every
+//! run and every machine. While idle the clock stands still.
+//!
+//! The simulated rig follows the plan: when a plan is committed, the heads
+//! it names (projector and camera models, wiring) are built from their
+//! profiles, with the fault plan's missed triggers, and their jitter seeded
+//! from the board seed and the head index.
+
+pub mod port;
+pub mod serve;
+
+use std::collections::VecDeque;
+
+use board_core::{Link, TriggerHardware};
+use protocol::limits::MAX_HEADS;
+use protocol::{
+    decode_payload, BoardFrame, BoardLimits, CameraModel, DeviceInfo, FirmwareVersion,
+    FrameAccumulator, HeadConfig, HostFrame, ProjectorModel, Request, ResetCause, Response,
+    ScanState, PROTOCOL_VERSION,
+};
+
+use crate::faults::{ByteFilter, FaultPlan};
+use crate::sim_hardware::{camera_config, projector_config, SimHardware, SimHead};
+
+pub use port::{BoardPort, ChannelPort, PortError};
+pub use serve::{serve, spawn_on_channels, spawn_on_pty, SimBoardHandle};
+
+/// How to build a simulated board.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SimBoardConfig {
+    /// Seed of every device's jitter.
+    pub seed: u64,
+    /// Faults to inject.
+    pub faults: FaultPlan,
+}
+
+/// Virtual ticks the board moves per step once a scan has played all its
+/// edges but the feedback check still waits out its late windows: 1 ms.
+const TAIL_STEP_TICKS: u64 = 170_000;
+
+/// Output bytes held before the board pauses its scan: a host that stops
+/// reading stalls virtual time instead of growing the queue without end.
+const MAX_QUEUED_OUTPUT: usize = 16 * 1024;
+
+/// Wiring of an absent head: channels no table uses, so it never sees an edge.
+const ABSENT_HEAD: HeadConfig = HeadConfig {
+    projector: ProjectorModel::Dlpc350,
+    camera: CameraModel::Mono6Mp,
+    projector_trigger_channel: u8::MAX,
+    camera_trigger_channel: u8::MAX,
+    projector_feedback_channel: u8::MAX,
+    camera_feedback_channel: u8::MAX,
+};
+
+/// The simulated board: link, hardware, devices, faults, output queue.
+#[derive(Debug)]
+pub struct SimBoard {
+    config: SimBoardConfig,
+    link: Link,
+    hw: SimHardware,
+    to_board: ByteFilter,
+    to_host: ByteFilter,
+    output: VecDeque<u8>,
+    // The rig follows the plan: heads seen in `BeginPlan`, applied when the
+    // board answers `PlanCommitted`.
+    request_sniffer: FrameAccumulator,
+    uploading_heads: Option<Vec<HeadConfig>>,
+    rig_heads: Vec<HeadConfig>,
+}
+
+impl SimBoard {
+    /// A board at virtual tick 0, idle, no plan.
+    pub fn new(config: SimBoardConfig) -> Self {
+        let heads = (0..MAX_HEADS)
+            .map(|_| SimHead::from_profiles(ABSENT_HEAD, 0))
+            .collect();
+        let to_board = ByteFilter::new(config.faults.to_board.clone());
+        let to_host = ByteFilter::new(config.faults.to_host.clone());
+        Self {
+            link: Link::new(Self::device_info(config.seed)),
+            hw: SimHardware::new(BoardLimits::STM32G474, heads),
+            to_board,
+            to_host,
+            output: VecDeque::new(),
+            request_sniffer: FrameAccumulator::new(),
+            uploading_heads: None,
+            rig_heads: Vec::new(),
+            config,
+        }
+    }
+
+    /// What the simulated board tells the host about itself.
+    pub fn device_info(seed: u64) -> DeviceInfo {
+        DeviceInfo {
+            protocol_version: PROTOCOL_VERSION,
+            firmware_version: FirmwareVersion {
+                major: 0,
+                minor: 1,
+                patch: 0,
+            },
+            board_id: 0x5157_0000_0000_0000 | (seed & 0xffff_ffff),
+            limits: BoardLimits::STM32G474,
+            reset_cause: ResetCause::Simulated,
+        }
+    }
+
+    /// The configuration it was built with.
+    pub fn config(&self) -> &SimBoardConfig {
+        &self.config
+    }
+
+    /// The simulated hardware: clock, recorded output edges, captures, device logs.
+    pub fn hardware(&self) -> &SimHardware {
+        &self.hw
+    }
+
+    /// The hardware, mutably (clear its logs between scans).
+    pub fn hardware_mut(&mut self) -> &mut SimHardware {
+        &mut self.hw
+    }
+
+    /// The heads of the simulated rig (those of the last committed plan).
+    pub fn rig_heads(&self) -> &[HeadConfig] {
+        &self.rig_heads
+    }
+
+    /// The sequencer's state.
+    pub fn state(&self) -> ScanState {
+        self.link.dispatcher().sequencer().state()
+    }
+
+    /// Byte counters of the fault filters: (to board, to host).
+    pub fn filters(&self) -> (&ByteFilter, &ByteFilter) {
+        (&self.to_board, &self.to_host)
+    }
+
+    /// Whether the board has vanished (fault `vanish_at_tick` reached).
+    pub fn has_vanished(&self) -> bool {
+        self.config
+            .faults
+            .vanish_at_tick
+            .is_some_and(|tick| self.hw.now_ticks() >= tick)
+    }
+
+    /// Bytes from the host, any chunking.
+    pub fn receive(&mut self, bytes: &[u8]) {
+        if self.has_vanished() {
+            return;
+        }
+        let mut survived = Vec::with_capacity(bytes.len());
+        self.to_board.apply(bytes, &mut survived);
+        self.sniff_requests(&survived);
+        let mut frames = Vec::new();
+        self.link
+            .receive(&survived, &mut self.hw, &mut |f| frames.push(f.to_vec()));
+        self.send(frames);
+    }
+
+    /// Whether [`SimBoard::step`] would move virtual time now: a scan runs
+    /// and the host is keeping up with the output. A vanished board is
+    /// frozen: nothing it did after could reach anyone.
+    pub fn can_step(&self) -> bool {
+        self.state() == ScanState::Running
+            && self.output.len() < MAX_QUEUED_OUTPUT
+            && !self.has_vanished()
+    }
+
+    /// Moves virtual time to the next thing that happens in the running scan
+    /// (an output edge or a capture; after the last, 1 ms at a time) and lets
+    /// the sequencer check it. Returns false when no scan is running.
+    pub fn step(&mut self) -> bool {
+        if !self.can_step() {
+            return false;
+        }
+        let now = self.hw.now_ticks();
+        let mut next = self
+            .hw
+            .next_event_tick()
+            .unwrap_or(now + TAIL_STEP_TICKS)
+            .max(now);
+        if let Some(vanish) = self.config.faults.vanish_at_tick.filter(|&t| t > now) {
+            // Stop exactly there, so the board falls silent at that tick.
+            next = next.min(vanish);
+        }
+        self.hw.advance_to(next);
+        let mut frames = Vec::new();
+        self.link
+            .poll(&mut self.hw, &mut |f| frames.push(f.to_vec()));
+        self.send(frames);
+        true
+    }
+
+    /// Runs the current scan until it ends or the output queue fills.
+    pub fn run_scan(&mut self) {
+        while self.step() {}
+    }
+
+    /// Bytes waiting for the host.
+    pub fn output(&self) -> &VecDeque<u8> {
+        &self.output
+    }
+
+    /// Removes `n` bytes the port has taken from the front of the output.
+    pub fn consume_output(&mut self, n: usize) {
+        self.output.drain(..n.min(self.output.len()));
+    }
+
+    /// Queues frames for the host through the to-host faults, and applies a
+    /// committed plan's heads to the rig.
+    fn send(&mut self, frames: Vec<Vec<u8>>) {
+        if self.has_vanished() {
+            return;
+        }
+        let mut filtered = Vec::new();
+        for frame in frames {
+            if self.answers_commit(&frame) {
+                self.rebuild_rig();
+            }
+            filtered.clear();
+            self.to_host.apply(&frame, &mut filtered);
+            self.output.extend(filtered.iter().copied());
+        }
+    }
+
+    /// Remembers the heads of a `BeginPlan` the link is about to read.
+    fn sniff_requests(&mut self, bytes: &[u8]) {
+        let mut headers = Vec::new();
+        self.request_sniffer.feed(bytes, |frame| {
+            if let Ok(HostFrame {
+                request: Request::BeginPlan(header),
+                ..
+            }) = frame.and_then(decode_payload::<HostFrame>)
+            {
+                headers.push(header.heads.to_vec());
+            }
+        });
+        if let Some(heads) = headers.pop() {
+            self.uploading_heads = Some(heads);
+        }
+    }
+
+    /// Whether `frame` is the board's `PlanCommitted` answer.
+    fn answers_commit(&self, frame: &[u8]) -> bool {
+        let mut acc = FrameAccumulator::new();
+        let mut committed = false;
+        acc.feed(frame, |f| {
+            committed |= matches!(
+                f.and_then(decode_payload::<BoardFrame>),
+                Ok(BoardFrame::Response {
+                    response: Response::PlanCommitted(_),
+                    ..
+                })
+            );
+        });
+        committed
+    }
+
+    /// Builds the heads of the committed plan from their profiles. Only runs
+    /// when a commit succeeded, which the sequencer allows only while no
+    /// scan is armed or running, so no device is swapped mid-scan.
+    fn rebuild_rig(&mut self) {
+        let Some(heads) = self.uploading_heads.take() else {
+            return;
+        };
+        for (index, slot) in self.hw.heads_mut().iter_mut().enumerate() {
+            let wiring = heads.get(index).copied().unwrap_or(ABSENT_HEAD);
+            let mut camera = camera_config(wiring.camera);
+            camera.missed_triggers = self.config.faults.missed_by_camera(index as u8);
+            let seed = self
+                .config
+                .seed
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .wrapping_add(index as u64);
+            *slot = SimHead::new(wiring, projector_config(wiring.projector), camera, seed);
+        }
+        self.rig_heads = heads;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::faults::{MissedTrigger, StreamFaults};
+    use protocol::limits::MAX_FRAME_BYTES;
+    use protocol::plan::examples;
+    use protocol::{encode_frame, Event, ScanPlan, WireError};
+
+    /// Sends one request and returns every frame the board answered with.
+    fn call(board: &mut SimBoard, id: u32, request: Request) -> Vec<BoardFrame> {
+        let mut buf = [0u8; MAX_FRAME_BYTES];
+        let n = encode_frame(&HostFrame { id, request }, &mut buf).unwrap();
+        board.receive(&buf[..n]);
+        drain(board)
+    }
+
+    fn drain(board: &mut SimBoard) -> Vec<BoardFrame> {
+        let bytes: Vec<u8> = board.output().iter().copied().collect();
+        board.consume_output(bytes.len());
+        let mut acc = FrameAccumulator::new();
+        let mut frames = Vec::new();
+        acc.feed(&bytes, |f| {
+            frames.push(f.and_then(decode_payload::<BoardFrame>).unwrap())
+        });
+        frames
+    }
+
+    fn response(frames: &[BoardFrame], want: u32) -> Response {
+        frames
+            .iter()
+            .find_map(|f| match f {
+                BoardFrame::Response { id, response } if *id == want => Some(response.clone()),
+                _ => None,
+            })
+            .unwrap_or_else(|| panic!("no response to {want} in {frames:?}"))
+    }
+
+    /// Uploads, arms and starts `plan`; returns the start tick.
+    fn start(board: &mut SimBoard, plan: &ScanPlan) -> u64 {
+        call(board, 1, Request::BeginPlan(plan.header()));
+        for i in 0..plan.exposures.len() {
+            let exposure = plan.wire_exposure(i).unwrap();
+            let r = call(
+                board,
+                10 + i as u32,
+                Request::AddExposure {
+                    index: i as u16,
+                    exposure,
+                },
+            );
+            assert!(matches!(
+                response(&r, 10 + i as u32),
+                Response::ExposureAdded { .. }
+            ));
+        }
+        let r = call(board, 100, Request::CommitPlan);
+        assert!(
+            matches!(response(&r, 100), Response::PlanCommitted(_)),
+            "{r:?}"
+        );
+        assert_eq!(
+            response(&call(board, 101, Request::Arm), 101),
+            Response::Armed
+        );
+        match response(&call(board, 102, Request::Start { delay_ns: 10_000 }), 102) {
+            Response::Started { start_tick } => start_tick,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn finished(frames: &[BoardFrame]) -> (ScanState, protocol::ScanReport) {
+        frames
+            .iter()
+            .find_map(|f| match f {
+                BoardFrame::Event(Event::ScanFinished { state, report }) => Some((*state, *report)),
+                _ => None,
+            })
+            .expect("a ScanFinished event")
+    }
+
+    #[test]
+    fn runs_the_24_pattern_plan_with_every_feedback_edge_on_time() {
+        let plan = examples::multiplexed_24_at_5khz(3);
+        let mut board = SimBoard::new(SimBoardConfig::default());
+        let start_tick = start(&mut board, &plan);
+        board.run_scan();
+        let (state, report) = finished(&drain(&mut board));
+        assert_eq!(state, ScanState::Done);
+        // 3 cycles x (24 projector + 1 camera pulses) x 2 edges, each mirrored.
+        assert_eq!(report.expected, 3 * 25 * 2);
+        assert_eq!(report.on_time, report.expected, "{report:?}");
+        let edges = board.hardware().recorded();
+        assert_eq!(edges.len(), 3 * 25 * 2);
+        assert!(edges.iter().all(|e| e.tick > start_tick));
+        assert_eq!(board.rig_heads(), plan.heads.as_slice());
+    }
+
+    #[test]
+    fn same_seed_same_timeline() {
+        let plan = examples::dual_head_psp(1);
+        let run = |seed| {
+            let mut board = SimBoard::new(SimBoardConfig {
+                seed,
+                ..SimBoardConfig::default()
+            });
+            start(&mut board, &plan);
+            board.run_scan();
+            let h = &board.hardware().heads()[1];
+            (h.camera.exposures().to_vec(), board.hardware().now_ticks())
+        };
+        assert_eq!(run(3), run(3));
+        assert_ne!(run(3).0, run(4).0, "jitter depends on the seed");
+    }
+
+    #[test]
+    fn missed_trigger_is_reported_missing() {
+        let faults = FaultPlan {
+            missed_triggers: [MissedTrigger {
+                camera: 0,
+                trigger_index: 1,
+            }]
+            .into(),
+            ..FaultPlan::none()
+        };
+        let mut board = SimBoard::new(SimBoardConfig { seed: 1, faults });
+        start(&mut board, &examples::multiplexed_24_at_5khz(3));
+        board.run_scan();
+        let frames = drain(&mut board);
+        let (state, report) = finished(&frames);
+        assert_eq!(state, ScanState::Done);
+        assert_eq!(
+            report.missing, 2,
+            "rise and fall of exposure-active, cycle 1"
+        );
+        let missing: Vec<u32> = frames
+            .iter()
+            .filter_map(|f| match f {
+                BoardFrame::Event(Event::FeedbackMissing {
+                    feedback_channel: 1,
+                    cycle,
+                    ..
+                }) => Some(*cycle),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(missing, vec![1, 1]);
+    }
+
+    #[test]
+    fn corrupted_request_gets_a_link_error_then_the_link_recovers() {
+        let faults = FaultPlan {
+            to_board: StreamFaults {
+                flip_bits: [(3, 2)].into(),
+                ..StreamFaults::default()
+            },
+            ..FaultPlan::none()
+        };
+        let mut board = SimBoard::new(SimBoardConfig { seed: 0, faults });
+        let first = call(&mut board, 1, Request::Ping { nonce: 9 });
+        assert!(
+            matches!(
+                first.as_slice(),
+                [BoardFrame::LinkError(WireError::Frame(_))]
+            ),
+            "{first:?}"
+        );
+        let second = call(&mut board, 1, Request::Ping { nonce: 9 });
+        assert_eq!(response(&second, 1), Response::Pong { nonce: 9 });
+    }
+
+    #[test]
+    fn vanished_board_says_nothing_more() {
+        let faults = FaultPlan {
+            vanish_at_tick: Some(1_000_000),
+            ..FaultPlan::none()
+        };
+        let mut board = SimBoard::new(SimBoardConfig { seed: 0, faults });
+        start(&mut board, &examples::multiplexed_24_at_5khz(3));
+        board.run_scan();
+        assert!(board.has_vanished());
+        assert_eq!(board.hardware().now_ticks(), 1_000_000);
+        let after = drain(&mut board);
+        assert!(
+            !after
+                .iter()
+                .any(|f| matches!(f, BoardFrame::Event(Event::ScanFinished { .. }))),
+            "{after:?}"
+        );
+        assert!(call(&mut board, 7, Request::Ping { nonce: 1 }).is_empty());
+    }
+
+    #[test]
+    fn idle_board_keeps_its_clock_still() {
+        let mut board = SimBoard::new(SimBoardConfig::default());
+        call(&mut board, 1, Request::Ping { nonce: 0 });
+        assert!(!board.step());
+        assert_eq!(board.hardware().now_ticks(), 0);
+    }
+}

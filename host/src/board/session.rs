@@ -1,0 +1,225 @@
+//! Whole board jobs built from the client's requests: upload a plan in
+//! chunks, run it, follow it to its end.
+//!
+//! While a scan runs, a real board is silent unless feedback deviates, so
+//! silence alone proves nothing: after each quiet spell the client asks for
+//! the board's status. A board that stopped answering then fails that request
+//! with a timeout, within `attempts x attempt_timeout` of host time, however
+//! long the scan is.
+
+use std::time::Duration;
+
+use protocol::{Event, PlanSummary, ScanPlan, ScanReport, ScanState};
+
+use super::client::BoardClient;
+use super::error::BoardError;
+use super::transport::Transport;
+
+/// What a scan did, as the board reported it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ScanOutcome {
+    /// The compiled plan.
+    pub summary: PlanSummary,
+    /// Board tick at which the first cycle started.
+    pub start_tick: u64,
+    /// How the scan ended (`Done`, `Aborted` or `Faulted`).
+    pub state: ScanState,
+    /// The board's final counters.
+    pub report: ScanReport,
+    /// Every event the board sent during the scan, in order.
+    pub events: Vec<Event>,
+}
+
+impl ScanOutcome {
+    /// True when the scan ran to its end with every feedback edge on time.
+    pub fn is_clean(&self) -> bool {
+        self.state == ScanState::Done
+            && self.report.expected == self.report.on_time
+            && self.report.unexpected == 0
+            && self.report.events_dropped == 0
+    }
+}
+
+/// Ticks the board may run past a scan's planned end before the client calls
+/// it stuck: the feedback check waits out the last late window, far less.
+const OVERRUN_SLACK_TICKS: u64 = 170_000_000;
+
+impl<T: Transport> BoardClient<T> {
+    /// Uploads `plan` (header, then one request per exposure) and has the
+    /// board validate and compile it.
+    pub fn upload_plan(&mut self, plan: &ScanPlan) -> Result<PlanSummary, BoardError> {
+        self.begin_plan(&plan.header())?;
+        for index in 0..plan.exposures.len() {
+            if let Some(exposure) = plan.wire_exposure(index) {
+                self.add_exposure(index as u16, &exposure)?;
+            }
+        }
+        self.commit_plan()
+    }
+
+    /// Uploads, arms and starts `plan` `start_delay_ns` after the board gets
+    /// the request, then follows it to its end, handing each event to
+    /// `on_event` as it comes.
+    pub fn run_plan(
+        &mut self,
+        plan: &ScanPlan,
+        start_delay_ns: u32,
+        mut on_event: impl FnMut(&Event),
+    ) -> Result<ScanOutcome, BoardError> {
+        let summary = self.upload_plan(plan)?;
+        self.arm()?;
+        let start_tick = self.start(start_delay_ns)?;
+        let end_tick = start_tick + summary.period_ticks as u64 * summary.repeat_count as u64;
+        let mut events = Vec::new();
+        let (state, report) = self.follow_scan(end_tick, |event| {
+            on_event(event);
+            events.push(*event);
+        })?;
+        Ok(ScanOutcome {
+            summary,
+            start_tick,
+            state,
+            report,
+            events,
+        })
+    }
+
+    /// Follows a running scan planned to end at board tick `end_tick` until
+    /// it finishes; returns its final state and counters.
+    pub fn follow_scan(
+        &mut self,
+        end_tick: u64,
+        mut on_event: impl FnMut(&Event),
+    ) -> Result<(ScanState, ScanReport), BoardError> {
+        let quiet = self.config().attempt_timeout;
+        loop {
+            match self.next_event(quiet)? {
+                Some(event) => {
+                    on_event(&event);
+                    if let Event::ScanFinished { state, report } = event {
+                        return Ok((state, report));
+                    }
+                }
+                None => {
+                    let status = self.status()?;
+                    match status.state {
+                        // Finished, but its event was lost: the counters are
+                        // the board's either way.
+                        ScanState::Done | ScanState::Aborted | ScanState::Faulted => {
+                            return self.drain_finish(status.state, status.report, &mut on_event)
+                        }
+                        _ if status.now_tick > end_tick + OVERRUN_SLACK_TICKS => {
+                            return Err(BoardError::ScanOverran {
+                                state: status.state,
+                                now_tick: status.now_tick,
+                                end_tick,
+                            })
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+    }
+
+    /// After a status showed the scan over: take the events already queued
+    /// (the `ScanFinished` among them wins over the status counters).
+    fn drain_finish(
+        &mut self,
+        state: ScanState,
+        report: ScanReport,
+        on_event: &mut impl FnMut(&Event),
+    ) -> Result<(ScanState, ScanReport), BoardError> {
+        while let Some(event) = self.next_event(Duration::ZERO)? {
+            on_event(&event);
+            if let Event::ScanFinished { state, report } = event {
+                return Ok((state, report));
+            }
+        }
+        Ok((state, report))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::board::client::ClientConfig;
+    use crate::board::transport::ChannelTransport;
+    use hil_sim::board::{spawn_on_channels, SimBoardConfig};
+    use protocol::plan::examples;
+
+    /// Client and simulated board in one process over channels (no pty).
+    fn in_process() -> (
+        BoardClient<ChannelTransport>,
+        hil_sim::board::SimBoardHandle,
+    ) {
+        let (host, board_end) = ChannelTransport::pair();
+        let (tx, rx) = board_end.into_parts();
+        let board = spawn_on_channels(SimBoardConfig::default(), tx, rx).unwrap();
+        let config = ClientConfig {
+            attempt_timeout: Duration::from_secs(2),
+            attempts: 3,
+        };
+        let (client, _) = BoardClient::connect(host, config).unwrap();
+        (client, board)
+    }
+
+    #[test]
+    fn runs_a_plan_end_to_end_over_channels() {
+        let (mut client, board) = in_process();
+        let plan = examples::flood_preliminaries(1);
+        let mut seen = 0;
+        let outcome = client.run_plan(&plan, 1_000_000, |_| seen += 1).unwrap();
+        assert!(outcome.is_clean(), "{outcome:?}");
+        assert_eq!(seen, outcome.events.len());
+        // 7 floods x (camera + projector pulse) x 2 edges, each mirrored back once.
+        assert_eq!(outcome.report.expected, 7 * 2 * 2);
+        assert_eq!(board.board().hardware().recorded().len(), 7 * 2 * 2);
+    }
+
+    #[test]
+    fn a_second_plan_runs_after_the_first() {
+        let (mut client, _board) = in_process();
+        let first = client
+            .run_plan(&examples::head_only(0, 1), 1_000_000, |_| {})
+            .unwrap();
+        let second = client
+            .run_plan(&examples::multiplexed_24_at_5khz(1), 1_000_000, |_| {})
+            .unwrap();
+        assert!(first.is_clean() && second.is_clean());
+        assert!(second.start_tick > first.start_tick);
+    }
+
+    #[test]
+    fn invalid_plan_is_refused_by_the_board_with_its_reason() {
+        let (mut client, _board) = in_process();
+        let mut plan = examples::multiplexed_24_at_5khz(1);
+        // Patterns 10 us apart: far above any DMD's rate.
+        for (k, slot) in plan.slots.iter_mut().enumerate() {
+            slot.offset_ns = 2_000 + k as u32 * 10_000;
+        }
+        let err = client.upload_plan(&plan).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                BoardError::Refused {
+                    request: "CommitPlan",
+                    error: protocol::WireError::Plan(_),
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn abort_stops_a_running_scan() {
+        let (mut client, _board) = in_process();
+        client.upload_plan(&examples::dual_head_psp(2)).unwrap();
+        client.arm().unwrap();
+        client.start(1_000_000).unwrap();
+        let report = client.abort().unwrap();
+        assert_eq!(report.cycles, 2);
+        assert_eq!(client.status().unwrap().state, ScanState::Aborted);
+    }
+}
