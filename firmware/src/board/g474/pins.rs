@@ -6,13 +6,13 @@
 //! | trigger out 0           | output 0           | TIM2_CH1    | PA0  | CN8 A0        | DMA1_CH1 (req 56)  |
 //! | trigger out 1           | output 1           | TIM2_CH2    | PA1  | CN8 A1        | DMA1_CH2 (req 57)  |
 //! | trigger out 2           | output 2           | TIM2_CH3    | PB10 | CN9 D6        | DMA1_CH3 (req 58)  |
-//! | trigger out 3           | output 3           | TIM2_CH4    | PB11 | CN10 pin 18   | DMA1_CH4 (req 59)  |
-//! | feedback in 0           | feedback 0         | TIM3_CH1    | PC6  | CN10 pin 4    | TIM3 IRQ           |
-//! | feedback in 1           | feedback 1         | TIM3_CH2    | PC7  | CN9 D9        | TIM3 IRQ           |
-//! | feedback in 2           | feedback 2         | TIM3_CH3    | PC8  | CN10 pin 2    | TIM3 IRQ           |
-//! | feedback in 3           | feedback 3         | TIM3_CH4    | PC9  | CN10 pin 1    | TIM3 IRQ           |
+//! | trigger out 3           | output 3           | TIM2_CH4    | PB11 | CN10 (morpho) | DMA1_CH4 (req 59)  |
+//! | feedback in 0           | feedback 0         | TIM3_CH1    | PC6  | CN10 (morpho) | TIM3 IRQ           |
+//! | feedback in 1           | feedback 1         | TIM3_CH2    | PC7  | CN5 D9        | TIM3 IRQ           |
+//! | feedback in 2           | feedback 2         | TIM3_CH3    | PC8  | CN10 (morpho) | TIM3 IRQ           |
+//! | feedback in 3           | feedback 3         | TIM3_CH4    | PC9  | CN10 (morpho) | TIM3 IRQ           |
 //! | status LED (LD2, green) | -                  | GPIO        | PA5  | on board      | -                  |
-//! | USB D- / D+             | -                  | USB FS      | PA11 / PA12 | CN10 pins 14 / 12 | USB_LP IRQ |
+//! | USB D- / D+             | -                  | USB FS      | PA11 / PA12 | CN10 (morpho) | USB_LP IRQ |
 //!
 //! Why these pins: PA2/PA3 carry the ST-LINK virtual COM port and PA5 the LED
 //! on the Nucleo, so TIM2 CH3/CH4 go to PB10/PB11 and the feedback capture to
