@@ -25,8 +25,10 @@ use super::pins::{FeedbackPins, FEEDBACK_CHANNELS, FEEDBACK_PIN_NUMBERS};
 use super::timebase::STROBE_TRIGGER;
 use crate::tick_extend::extend;
 
-/// Captures buffered between the IRQ and the sequencer task.
-pub const CAPTURE_QUEUE_LEN: usize = 64;
+/// Captures buffered between the IRQ and the sequencer task (16 B each):
+/// the seed-001 plan makes ~11 feedback edges per ms, so this covers ~23 ms
+/// of the link task being busy (a burst of USB writes takes a few ms).
+pub const CAPTURE_QUEUE_LEN: usize = 256;
 
 /// One feedback edge as the IRQ saw it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
