@@ -6,7 +6,8 @@
 //! 16-bit, so its IRQ extends each capture with a software count of TIM3
 //! wraps (every 385 us). Both edges are captured; the level after an edge is
 //! tracked by alternation from the idle level read at arm time, and an
-//! over-capture (a second edge before the IRQ read the first) is reported.
+//! over-capture (a second edge before the IRQ read the first) is reported
+//! and resynchronises the level from the pin.
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
@@ -164,6 +165,11 @@ impl FeedbackCapture {
     }
 }
 
+/// The current level of feedback pin `ch` (GPIOC input data register).
+fn pin_is_high(ch: usize) -> bool {
+    pac::GPIOC.idr().read().idr(FEEDBACK_PIN_NUMBERS[ch]) == pac::gpio::vals::Idr::HIGH
+}
+
 /// Binds to TIM3's interrupt: reads captures, extends them to 64 bits.
 pub struct CaptureIrq;
 
@@ -178,7 +184,14 @@ impl Handler<Tim3Irq> for CaptureIrq {
             }
             let lost = sr.ccof(ch);
             let low = r.ccr(ch).read().ccr(); // reading CCRx clears CCxIF
-            let level = !LEVEL[ch].load(Ordering::Relaxed);
+                                              // Each capture flips the level, except after an over-capture:
+                                              // an unknown number of edges went by and CCRx holds the latest,
+                                              // so the pin, read microseconds later, tells its level.
+            let level = if lost {
+                pin_is_high(ch)
+            } else {
+                !LEVEL[ch].load(Ordering::Relaxed)
+            };
             LEVEL[ch].store(level, Ordering::Relaxed);
             let cap = RawCapture {
                 channel: ch as u8,
