@@ -121,7 +121,8 @@ impl SimBoard {
         &self.config
     }
 
-    /// The simulated hardware: clock, recorded output edges, captures, device logs.
+    /// The simulated hardware: clock, recorded output edges and captures
+    /// (since the last plan commit), device logs.
     pub fn hardware(&self) -> &SimHardware {
         &self.hw
     }
@@ -269,11 +270,14 @@ impl SimBoard {
 
     /// Builds the heads of the committed plan from their profiles. Only runs
     /// when a commit succeeded, which the sequencer allows only while no
-    /// scan is armed or running, so no device is swapped mid-scan.
+    /// scan is armed or running, so no device is swapped mid-scan. The edge
+    /// and capture logs restart too, so a long-serving board keeps only the
+    /// current plan's scans.
     fn rebuild_rig(&mut self) {
         let Some(heads) = self.uploading_heads.take() else {
             return;
         };
+        self.hw.clear_log();
         for (index, slot) in self.hw.heads_mut().iter_mut().enumerate() {
             let wiring = heads.get(index).copied().unwrap_or(ABSENT_HEAD);
             let mut camera = camera_config(wiring.camera);

@@ -282,3 +282,25 @@ fn noisy_link_only_ever_gives_answers_or_link_errors() {
     }
     assert!(answered > 20, "only {answered} of 40 pings answered");
 }
+
+#[test]
+fn board_gone_from_under_the_port_is_a_link_error_not_a_hang() {
+    let PtyRig {
+        board, mut client, ..
+    } = rig(FaultPlan::none(), IMPATIENT);
+    client.ping(1).expect("alive");
+    // The board's process ends: its side of the pty closes, like a board
+    // unplugged from USB.
+    board.stop().expect("board loop ended cleanly");
+    let asked = Instant::now();
+    let err = client.ping(2).expect_err("nobody is there");
+    assert!(
+        matches!(err, BoardError::Link(LinkError::PortGone { .. })),
+        "{err}"
+    );
+    assert!(
+        asked.elapsed() < Duration::from_secs(5),
+        "{:?}",
+        asked.elapsed()
+    );
+}

@@ -15,6 +15,7 @@ use hil_sim::devices::patterns_in_window;
 use integration_tests::{planned_edges, pty_rig, recorded_edges, PtyRig, PATIENT};
 use protocol::limits::ns_to_ticks;
 use protocol::plan::examples;
+use protocol::plan::random::{random_kind, random_plan, SplitMix64};
 use protocol::{Level, ScanPlan, ScanState};
 use slscan::board::ScanOutcome;
 
@@ -33,6 +34,12 @@ fn run_and_check(plan: &ScanPlan, seed: u64) -> (PtyRig, ScanOutcome) {
         PATIENT,
     )
     .expect("simulated board on a pty, client connected");
+    let outcome = run_on(&mut rig, plan);
+    (rig, outcome)
+}
+
+/// Runs `plan` on `rig`'s board and checks it (see the module doc).
+fn run_on(rig: &mut PtyRig, plan: &ScanPlan) -> ScanOutcome {
     let outcome = rig
         .client
         .run_plan(plan, START_DELAY_NS, |_| {})
@@ -59,8 +66,8 @@ fn run_and_check(plan: &ScanPlan, seed: u64) -> (PtyRig, ScanOutcome) {
     // Each output edge comes back once on its feedback line.
     assert_eq!(outcome.report.expected as usize, planned.len());
 
-    assert_cameras_saw_their_slots(plan, &rig);
-    (rig, outcome)
+    assert_cameras_saw_their_slots(plan, rig);
+    outcome
 }
 
 /// Every camera exposure holds exactly its exposure's patterns, each shown
@@ -213,4 +220,23 @@ fn same_seed_same_timeline_and_feedback_ticks() {
         (recorded_edges(&rig.board), captures, outcome.report)
     };
     assert_eq!(run(), run());
+}
+
+#[test]
+fn random_valid_plans_of_every_kind_one_after_another_on_one_board() {
+    let mut rig = pty_rig(SimBoardConfig::default(), PATIENT).expect("pty rig");
+    let mut bits = SplitMix64(0x5EED_0003);
+    let mut last_start = 0;
+    for _ in 0..12 {
+        let kind = random_kind(&mut bits);
+        let mut plan = random_plan(kind, &mut bits);
+        // Keep the run short: a few cycles are as telling as many.
+        plan.repeat_count = plan.repeat_count.min(3);
+        let outcome = run_on(&mut rig, &plan);
+        assert!(
+            outcome.start_tick > last_start,
+            "the board's clock only moves on"
+        );
+        last_start = outcome.start_tick;
+    }
 }

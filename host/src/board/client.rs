@@ -355,77 +355,8 @@ pub fn request_name(request: &Request) -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::board::test_board::{answer, finish, frame, info, scripted_board, SHORT};
     use crate::board::transport::ChannelTransport;
-    use protocol::{BoardLimits, FirmwareVersion, ResetCause};
-    use std::thread::JoinHandle;
-
-    const SHORT: ClientConfig = ClientConfig {
-        attempt_timeout: Duration::from_millis(100),
-        attempts: 3,
-    };
-
-    fn info() -> DeviceInfo {
-        DeviceInfo {
-            protocol_version: PROTOCOL_VERSION,
-            firmware_version: FirmwareVersion {
-                major: 0,
-                minor: 1,
-                patch: 0,
-            },
-            board_id: 7,
-            limits: BoardLimits::STM32G474,
-            reset_cause: ResetCause::Simulated,
-        }
-    }
-
-    fn frame(message: &BoardFrame) -> Vec<u8> {
-        let mut buf = [0u8; MAX_FRAME_BYTES];
-        let n = encode_frame(message, &mut buf).unwrap();
-        buf[..n].to_vec()
-    }
-
-    fn answer(id: RequestId, response: Response) -> Vec<u8> {
-        frame(&BoardFrame::Response { id, response })
-    }
-
-    /// A scripted board on a thread: `script` sees each request (with how
-    /// many came before) and returns the raw bytes to send back. Returns the
-    /// requests it saw when the client hangs up.
-    fn scripted_board(
-        mut script: impl FnMut(usize, &HostFrame) -> Vec<Vec<u8>> + Send + 'static,
-    ) -> (BoardClient<ChannelTransport>, JoinHandle<Vec<HostFrame>>) {
-        let (host, mut board) = ChannelTransport::pair();
-        let handle = std::thread::spawn(move || {
-            let mut rx = FrameAccumulator::new();
-            let mut seen = Vec::new();
-            let mut buf = [0u8; 256];
-            loop {
-                let n = match board.recv(&mut buf, Duration::from_millis(10)) {
-                    Ok(n) => n,
-                    Err(_) => return seen,
-                };
-                let mut frames = Vec::new();
-                rx.feed(&buf[..n], |f| {
-                    frames.push(f.and_then(decode_payload::<HostFrame>))
-                });
-                for f in frames.into_iter().flatten() {
-                    for bytes in script(seen.len(), &f) {
-                        let _ = board.send(&bytes);
-                    }
-                    seen.push(f);
-                }
-            }
-        });
-        (BoardClient::new(host, SHORT), handle)
-    }
-
-    fn finish(
-        client: BoardClient<ChannelTransport>,
-        board: JoinHandle<Vec<HostFrame>>,
-    ) -> Vec<HostFrame> {
-        drop(client);
-        board.join().unwrap()
-    }
 
     #[test]
     fn handshake_returns_the_board_info() {

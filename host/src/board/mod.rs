@@ -17,6 +17,8 @@ pub mod client;
 pub mod error;
 pub mod plan_file;
 pub mod session;
+#[cfg(test)]
+mod test_board;
 pub mod transport;
 
 pub use client::{BoardClient, ClientConfig, LinkStats};

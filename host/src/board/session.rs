@@ -7,7 +7,7 @@
 //! with a timeout, within `attempts x attempt_timeout` of host time, however
 //! long the scan is.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use protocol::{Event, PlanSummary, ScanPlan, ScanReport, ScanState};
 
@@ -92,38 +92,45 @@ impl<T: Transport> BoardClient<T> {
         mut on_event: impl FnMut(&Event),
     ) -> Result<(ScanState, ScanReport), BoardError> {
         let quiet = self.config().attempt_timeout;
+        // Host time is used only to space the status checks: one after each
+        // quiet spell, and at least one per spell while events stream, so a
+        // board stuck sending events cannot keep the client waiting forever.
+        let mut last_check = Instant::now();
         loop {
-            match self.next_event(quiet)? {
-                Some(event) => {
-                    on_event(&event);
-                    if let Event::ScanFinished { state, report } = event {
-                        return Ok((state, report));
-                    }
+            let event = self.next_event(quiet)?;
+            if let Some(event) = event {
+                on_event(&event);
+                if let Event::ScanFinished { state, report } = event {
+                    return Ok((state, report));
                 }
-                None => {
-                    let status = self.status()?;
-                    match status.state {
-                        // Finished, but its event was lost: the counters are
-                        // the board's either way.
-                        ScanState::Done | ScanState::Aborted | ScanState::Faulted => {
-                            return self.drain_finish(status.state, status.report, &mut on_event)
-                        }
-                        _ if status.now_tick > end_tick + OVERRUN_SLACK_TICKS => {
-                            return Err(BoardError::ScanOverran {
-                                state: status.state,
-                                now_tick: status.now_tick,
-                                end_tick,
-                            })
-                        }
-                        _ => {}
-                    }
+                if last_check.elapsed() < quiet {
+                    continue;
                 }
+            }
+            last_check = Instant::now();
+            let status = self.status()?;
+            match status.state {
+                // Finished, but its event was lost: the counters are the
+                // board's either way.
+                ScanState::Done | ScanState::Aborted | ScanState::Faulted => {
+                    return self.drain_finish(status.state, status.report, &mut on_event)
+                }
+                _ if status.now_tick > end_tick + OVERRUN_SLACK_TICKS => {
+                    return Err(BoardError::ScanOverran {
+                        state: status.state,
+                        now_tick: status.now_tick,
+                        end_tick,
+                    })
+                }
+                _ => {}
             }
         }
     }
 
     /// After a status showed the scan over: take the events already queued
-    /// (the `ScanFinished` among them wins over the status counters).
+    /// (the `ScanFinished` among them wins over the status counters). The
+    /// board sends in order, so an event sent before the status answer was
+    /// read, and queued, while the client waited for that answer.
     fn drain_finish(
         &mut self,
         state: ScanState,
@@ -205,6 +212,72 @@ mod tests {
                 BoardError::Refused {
                     request: "CommitPlan",
                     error: protocol::WireError::Plan(_),
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+
+    /// A board that runs plans but whose `ScanFinished` event never arrives;
+    /// its status says `status_state` at `status_tick`.
+    fn board_losing_the_end(
+        status_state: ScanState,
+        status_tick: u64,
+    ) -> BoardClient<ChannelTransport> {
+        use crate::board::test_board::{answer, scripted_board};
+        use protocol::{BoardStatus, PlanSummary, Request, Response};
+        let report = ScanReport {
+            cycles: 1,
+            expected: 4,
+            on_time: 4,
+            ..ScanReport::default()
+        };
+        let (client, _board) = scripted_board(move |_, f| {
+            let response = match &f.request {
+                Request::BeginPlan(_) => Response::PlanBegun,
+                Request::AddExposure { index, .. } => Response::ExposureAdded { index: *index },
+                Request::CommitPlan => Response::PlanCommitted(PlanSummary {
+                    edges_per_cycle: 4,
+                    period_ticks: 1_000,
+                    repeat_count: 1,
+                }),
+                Request::Arm => Response::Armed,
+                Request::Start { .. } => Response::Started { start_tick: 500 },
+                _ => Response::Status(BoardStatus {
+                    state: status_state,
+                    now_tick: status_tick,
+                    plan_loaded: true,
+                    report,
+                }),
+            };
+            vec![answer(f.id, response)]
+        });
+        client
+    }
+
+    #[test]
+    fn lost_finish_event_is_made_up_for_by_the_status() {
+        let mut client = board_losing_the_end(ScanState::Done, 2_000);
+        let outcome = client
+            .run_plan(&examples::head_only(0, 1), 1_000_000, |_| {})
+            .unwrap();
+        assert_eq!(outcome.state, ScanState::Done);
+        assert_eq!(outcome.report.on_time, 4);
+    }
+
+    #[test]
+    fn board_running_long_past_the_plan_end_is_an_overrun() {
+        let mut client =
+            board_losing_the_end(ScanState::Running, 500 + 1_000 + 10 * OVERRUN_SLACK_TICKS);
+        let err = client
+            .run_plan(&examples::head_only(0, 1), 1_000_000, |_| {})
+            .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                BoardError::ScanOverran {
+                    end_tick: 1_500,
                     ..
                 }
             ),
