@@ -18,8 +18,11 @@ use embassy_stm32::Peri;
 
 use crate::tick_extend::extend;
 
-/// TIM2/TIM3 select TIM5's TRGO as ITR4 on the G4 (RM0440 "TIMx internal
-/// trigger connection": ITR0 TIM1, ITR1 TIM2, ITR2 TIM3, ITR3 TIM4, ITR4 TIM5).
+/// TIM2/TIM3 select TIM5's TRGO as ITR4 on the G4, whose internal trigger
+/// table is the same for every slave (RM0440 "TIMx internal trigger
+/// connection": ITR0 TIM1, ITR1 TIM2, ITR2 TIM3, ITR3 TIM4, ITR4 TIM5; ST's
+/// G474 cascade example uses ITR1 = TIM2 for TIM3, and SimpleFOC's G4 timer
+/// alignment maps master TIM5 to ITR4 for any slave).
 pub const STROBE_TRIGGER: pac::timer::vals::Ts = pac::timer::vals::Ts::ITR4;
 /// Ticks the CPU needs between the arming check and the compare (two
 /// register writes inside a critical section): a start closer than this is
