@@ -15,7 +15,7 @@ use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::peripherals::{IWDG, USB};
 use embassy_stm32::usb::Driver;
 use embassy_stm32::wdg::IndependentWatchdog;
-use embassy_stm32::{bind_interrupts, pac, peripherals, usb};
+use embassy_stm32::{bind_interrupts, interrupt, pac, peripherals, usb};
 use protocol::ResetCause;
 
 use self::capture::FeedbackCapture;
@@ -100,6 +100,11 @@ pub fn init(buffers: &'static mut DmaBuffers) -> Board {
     let timebase = Timebase::new(pins.timebase);
     let hardware = G474Hardware::new(timebase, timers, capture);
     let usb = Driver::new(pins.usb.usb, Irqs, pins.usb.dp, pins.usb.dm);
+    // Below the timer IRQs (P1): a USB transfer must not delay a capture or
+    // the cycle check. (The driver enables its IRQ at the default P0.)
+    <interrupt::typelevel::USB_LP as interrupt::typelevel::Interrupt>::set_priority(
+        interrupt::Priority::P2,
+    );
     let led = Output::new(pins.led, Level::Low, Speed::Low);
     let watchdog = IndependentWatchdog::new(pins.iwdg, WATCHDOG_TIMEOUT_US);
     defmt::info!(
