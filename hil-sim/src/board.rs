@@ -46,9 +46,9 @@ pub struct SimBoardConfig {
     pub faults: FaultPlan,
 }
 
-/// Virtual ticks the board moves per step once a scan has played all its
-/// edges but the feedback check still waits out its late windows: 1 ms.
-const TAIL_STEP_TICKS: u64 = 170_000;
+/// Steps per virtual second once a scan has played all its edges but the
+/// feedback check still waits out its late windows: 1 ms steps.
+const TAIL_STEPS_PER_S: u64 = 1_000;
 
 /// Output bytes held before the board pauses its scan: a host that stops
 /// reading stalls virtual time instead of growing the queue without end.
@@ -189,7 +189,7 @@ impl SimBoard {
         let mut next = self
             .hw
             .next_event_tick()
-            .unwrap_or(now + TAIL_STEP_TICKS)
+            .unwrap_or(now + self.hw.clock().timer_clock_hz() as u64 / TAIL_STEPS_PER_S)
             .max(now);
         if let Some(vanish) = self.config.faults.vanish_at_tick.filter(|&t| t > now) {
             // Stop exactly there, so the board falls silent at that tick.
