@@ -45,6 +45,7 @@ static USB_BOS_DESC: StaticCell<[u8; 256]> = StaticCell::new();
 static USB_CONTROL_BUF: StaticCell<[u8; 64]> = StaticCell::new();
 static CDC_STATE: StaticCell<State> = StaticCell::new();
 static USB_HANDLER: StaticCell<usb_link::UsbStateHandler> = StaticCell::new();
+static USB_SERIAL: StaticCell<heapless::String<16>> = StaticCell::new();
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
@@ -60,7 +61,7 @@ async fn main(spawner: Spawner) {
     };
     let link = LINK.init_with(|| Link::new(info));
 
-    let (device, class) = usb_cdc(board.usb);
+    let (device, class) = usb_cdc(board.usb, board.board_id);
     spawner.spawn(defmt::unwrap!(usb_device(device)));
     spawner.spawn(defmt::unwrap!(usb_link::run(class, board.hardware, link)));
     spawner.spawn(defmt::unwrap!(status_led::run(board.led)));
@@ -69,13 +70,16 @@ async fn main(spawner: Spawner) {
 }
 
 /// The USB device with one CDC-ACM function.
+/// The board id as the USB serial number, so hosts tell boards apart
+/// (`/dev/serial/by-id/...`).
 fn usb_cdc(
     driver: Driver<'static, USB>,
+    board_id: u64,
 ) -> (UsbDevice<'static, Driver<'static, USB>>, usb_link::Class) {
     let mut config = embassy_usb::Config::new(USB_VID, USB_PID);
     config.manufacturer = Some("slscan");
     config.product = Some("slscan sync board");
-    config.serial_number = None;
+    config.serial_number = Some(USB_SERIAL.init(hex16(board_id)));
     config.max_power = 100;
     config.max_packet_size_0 = 64;
     let mut builder = Builder::new(
@@ -93,6 +97,22 @@ fn usb_cdc(
         usb_link::USB_PACKET_BYTES as u16,
     );
     (builder.build(), class)
+}
+
+/// `value` as 16 upper-case hex digits.
+fn hex16(value: u64) -> heapless::String<16> {
+    let mut out = heapless::String::new();
+    for shift in (0..16).rev() {
+        let digit = ((value >> (shift * 4)) & 0xF) as u8;
+        let c = char::from(if digit < 10 {
+            b'0' + digit
+        } else {
+            b'A' + digit - 10
+        });
+        // 16 pushes into a 16-byte string cannot fail.
+        let _ = out.push(c);
+    }
+    out
 }
 
 /// The package version, parsed at compile time.
