@@ -121,6 +121,19 @@ pub fn init(buffers: &'static mut DmaBuffers) -> Board {
     }
 }
 
+/// Any fault (and every panic: panic-probe logs it, then raises a
+/// HardFault) first forces every trigger output inactive, so a scan does
+/// not keep playing while the watchdog runs out; then the watchdog resets
+/// the board within `WATCHDOG_TIMEOUT_US`. (Under `probe-rs run` the
+/// debugger halts on the fault before this runs.)
+#[cortex_m_rt::exception]
+unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    timers::stop_outputs();
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
 /// FNV-1a of the 96-bit unique id: stable per chip, fits `DeviceInfo::board_id`.
 fn board_id() -> u64 {
     embassy_stm32::uid::uid()

@@ -325,9 +325,10 @@ fn force_inactive(ch: usize) {
 }
 
 /// All outputs inactive, counter stopped, DMA requests and channels off.
-/// Register-only so the IRQ can call it too; callers in thread mode hold a
-/// critical section so the IRQ's OPM write cannot interleave.
-fn stop_outputs() {
+/// Register-only so the IRQ and the fault handler can call it too; callers
+/// in thread mode hold a critical section so the IRQ's OPM write cannot
+/// interleave.
+pub(super) fn stop_outputs() {
     let r = pac::TIM2;
     // Outputs first: from here on no compare can move a pin.
     for ch in 0..TRIGGER_CHANNELS {
