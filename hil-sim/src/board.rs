@@ -16,19 +16,23 @@
 //! The simulated rig follows the plan: when a plan is committed, the heads
 //! it names (projector and camera models, wiring) are built from their
 //! profiles, with the fault plan's missed triggers, and their jitter seeded
-//! from the board seed and the head index.
+//! from the board seed and the head index; each DMD shows its patterns for
+//! the plan's `display_ns`, as a host programs a real DMD's pattern table.
+//! The board learns the plan by reading the upload as its dispatcher does
+//! (same order and retry rules) and checks that it compiles to the very
+//! table the dispatcher committed.
 
 pub mod port;
 pub mod serve;
 
 use std::collections::VecDeque;
 
-use board_core::{Link, TriggerHardware};
+use board_core::{EdgeTable, Link, TriggerHardware};
 use protocol::limits::MAX_HEADS;
 use protocol::{
     decode_payload, BoardFrame, BoardLimits, CameraModel, DeviceInfo, FirmwareVersion,
-    FrameAccumulator, HeadConfig, HostFrame, ProjectorModel, Request, ResetCause, Response,
-    ScanState, PROTOCOL_VERSION,
+    FrameAccumulator, HeadConfig, HostFrame, ProjectorModel, Request, RequestId, ResetCause,
+    Response, ScanPlan, ScanState, PROTOCOL_VERSION,
 };
 
 use crate::faults::{ByteFilter, FaultPlan};
@@ -73,10 +77,11 @@ pub struct SimBoard {
     to_board: ByteFilter,
     to_host: ByteFilter,
     output: VecDeque<u8>,
-    // The rig follows the plan: heads seen in `BeginPlan`, applied when the
-    // board answers `PlanCommitted`.
+    // The rig follows the plan: the upload as the dispatcher reads it,
+    // applied when the board answers `PlanCommitted`.
     request_sniffer: FrameAccumulator,
-    uploading_heads: Option<Vec<HeadConfig>>,
+    last_request_id: Option<RequestId>,
+    uploading: Option<ScanPlan>,
     rig_heads: Vec<HeadConfig>,
 }
 
@@ -95,7 +100,8 @@ impl SimBoard {
             to_host,
             output: VecDeque::new(),
             request_sniffer: FrameAccumulator::new(),
-            uploading_heads: None,
+            last_request_id: None,
+            uploading: None,
             rig_heads: Vec::new(),
             config,
         }
@@ -235,20 +241,33 @@ impl SimBoard {
         }
     }
 
-    /// Remembers the heads of a `BeginPlan` the link is about to read.
+    /// Follows the plan upload in `bytes`, which the link is about to read,
+    /// by the dispatcher's rules: a repeated id (not `Hello`) is a retry the
+    /// board answers from its cache, and exposures must come in order.
     fn sniff_requests(&mut self, bytes: &[u8]) {
-        let mut headers = Vec::new();
+        let mut requests = Vec::new();
         self.request_sniffer.feed(bytes, |frame| {
-            if let Ok(HostFrame {
-                request: Request::BeginPlan(header),
-                ..
-            }) = frame.and_then(decode_payload::<HostFrame>)
-            {
-                headers.push(header.heads.to_vec());
+            if let Ok(host_frame) = frame.and_then(decode_payload::<HostFrame>) {
+                requests.push(host_frame);
             }
         });
-        if let Some(heads) = headers.pop() {
-            self.uploading_heads = Some(heads);
+        for HostFrame { id, request } in requests {
+            let retry =
+                self.last_request_id == Some(id) && !matches!(request, Request::Hello { .. });
+            self.last_request_id = Some(id);
+            match request {
+                _ if retry => {}
+                Request::BeginPlan(header) => self.uploading = Some(ScanPlan::from_header(&header)),
+                Request::AddExposure { index, exposure } => {
+                    if let Some(plan) = self.uploading.as_mut() {
+                        if index as usize == plan.exposures.len() {
+                            // A capacity refusal here is the board's too.
+                            let _ = plan.push_wire_exposure(&exposure);
+                        }
+                    }
+                }
+                _ => {}
+            }
         }
     }
 
@@ -274,12 +293,24 @@ impl SimBoard {
     /// and capture logs restart too, so a long-serving board keeps only the
     /// current plan's scans.
     fn rebuild_rig(&mut self) {
-        let Some(heads) = self.uploading_heads.take() else {
+        let Some(plan) = self.uploading.take() else {
             return;
         };
         self.hw.clear_log();
+        // The plan as read must be the plan the dispatcher compiled; if it
+        // ever is not, the heads still follow the header but the DMDs keep
+        // their profile's display time.
+        let same_table = plan
+            .clone()
+            .validate(&BoardLimits::STM32G474)
+            .ok()
+            .and_then(|valid| EdgeTable::compile(&valid).ok())
+            .is_some_and(|table| table == *self.link.dispatcher().sequencer().table());
+        if !same_table {
+            tracing::warn!("simulated rig: the sniffed plan differs from the committed one");
+        }
         for (index, slot) in self.hw.heads_mut().iter_mut().enumerate() {
-            let wiring = heads.get(index).copied().unwrap_or(ABSENT_HEAD);
+            let wiring = plan.heads.get(index).copied().unwrap_or(ABSENT_HEAD);
             let mut camera = camera_config(wiring.camera);
             camera.missed_triggers = self.config.faults.missed_by_camera(index as u8);
             let seed = self
@@ -288,9 +319,22 @@ impl SimBoard {
                 .wrapping_mul(0x9E37_79B9_7F4A_7C15)
                 .wrapping_add(index as u64);
             *slot = SimHead::new(wiring, projector_config(wiring.projector), camera, seed);
+            if same_table {
+                slot.projector
+                    .set_display_sequence(display_sequence_ns(&plan, index));
+            }
         }
-        self.rig_heads = heads;
+        self.rig_heads = plan.heads.to_vec();
     }
+}
+
+/// How long head `head`'s DMD shows each pattern, in the order its triggers
+/// come within one cycle.
+fn display_sequence_ns(plan: &ScanPlan, head: usize) -> Vec<u64> {
+    plan.exposures()
+        .filter(|e| e.entry.heads.contains(head))
+        .flat_map(|e| e.slots.iter().map(|slot| slot.display_ns as u64))
+        .collect()
 }
 
 #[cfg(test)]
@@ -388,6 +432,16 @@ mod tests {
         assert_eq!(edges.len(), 3 * 25 * 2);
         assert!(edges.iter().all(|e| e.tick > start_tick));
         assert_eq!(board.rig_heads(), plan.heads.as_slice());
+        // The DMD shows each pattern for the plan's 200 us, less at most the
+        // jitter by which the next pattern may come early.
+        let jitter_ns = ProjectorModel::Dlpc900.profile().jitter_ns as u64;
+        for shown in board.hardware().heads()[0].projector.displayed() {
+            let display_ns = shown.end_ns - shown.start_ns;
+            assert!(
+                display_ns <= 200_000 && display_ns >= 200_000 - 2 * jitter_ns,
+                "{shown:?}"
+            );
+        }
     }
 
     #[test]
