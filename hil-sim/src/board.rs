@@ -23,20 +23,19 @@
 //! table the dispatcher committed.
 
 pub mod port;
+mod rig;
 pub mod serve;
 
 use std::collections::VecDeque;
 
-use board_core::{EdgeTable, Link, TriggerHardware};
+use board_core::{Link, TriggerHardware};
 use protocol::limits::MAX_HEADS;
 use protocol::{
-    decode_payload, BoardFrame, BoardLimits, CameraModel, DeviceInfo, FirmwareVersion,
-    FrameAccumulator, HeadConfig, HostFrame, ProjectorModel, Request, RequestId, ResetCause,
-    Response, ScanPlan, ScanState, PROTOCOL_VERSION,
+    BoardLimits, DeviceInfo, FirmwareVersion, HeadConfig, ResetCause, ScanState, PROTOCOL_VERSION,
 };
 
 use crate::faults::{ByteFilter, FaultPlan};
-use crate::sim_hardware::{camera_config, projector_config, SimHardware, SimHead};
+use crate::sim_hardware::{SimHardware, SimHead};
 
 pub use port::{BoardPort, ChannelPort, PortError};
 pub use serve::{serve, spawn_on_channels, spawn_on_pty, SimBoardHandle};
@@ -58,16 +57,6 @@ const TAIL_STEPS_PER_S: u64 = 1_000;
 /// reading stalls virtual time instead of growing the queue without end.
 const MAX_QUEUED_OUTPUT: usize = 16 * 1024;
 
-/// Wiring of an absent head: channels no table uses, so it never sees an edge.
-const ABSENT_HEAD: HeadConfig = HeadConfig {
-    projector: ProjectorModel::Dlpc350,
-    camera: CameraModel::Mono6Mp,
-    projector_trigger_channel: u8::MAX,
-    camera_trigger_channel: u8::MAX,
-    projector_feedback_channel: u8::MAX,
-    camera_feedback_channel: u8::MAX,
-};
-
 /// The simulated board: link, hardware, devices, faults, output queue.
 #[derive(Debug)]
 pub struct SimBoard {
@@ -79,9 +68,7 @@ pub struct SimBoard {
     output: VecDeque<u8>,
     // The rig follows the plan: the upload as the dispatcher reads it,
     // applied when the board answers `PlanCommitted`.
-    request_sniffer: FrameAccumulator,
-    last_request_id: Option<RequestId>,
-    uploading: Option<ScanPlan>,
+    upload: rig::UploadReader,
     rig_heads: Vec<HeadConfig>,
 }
 
@@ -89,7 +76,7 @@ impl SimBoard {
     /// A board at virtual tick 0, idle, no plan.
     pub fn new(config: SimBoardConfig) -> Self {
         let heads = (0..MAX_HEADS)
-            .map(|_| SimHead::from_profiles(ABSENT_HEAD, 0))
+            .map(|_| SimHead::from_profiles(rig::ABSENT_HEAD, 0))
             .collect();
         let to_board = ByteFilter::new(config.faults.to_board.clone());
         let to_host = ByteFilter::new(config.faults.to_host.clone());
@@ -99,9 +86,7 @@ impl SimBoard {
             to_board,
             to_host,
             output: VecDeque::new(),
-            request_sniffer: FrameAccumulator::new(),
-            last_request_id: None,
-            uploading: None,
+            upload: rig::UploadReader::default(),
             rig_heads: Vec::new(),
             config,
         }
@@ -168,7 +153,7 @@ impl SimBoard {
         }
         let mut survived = Vec::with_capacity(bytes.len());
         self.to_board.apply(bytes, &mut survived);
-        self.sniff_requests(&survived);
+        self.upload.read(&survived);
         let mut frames = Vec::new();
         self.link
             .receive(&survived, &mut self.hw, &mut |f| frames.push(f.to_vec()));
@@ -232,7 +217,7 @@ impl SimBoard {
         }
         let mut filtered = Vec::new();
         for frame in frames {
-            if self.answers_commit(&frame) {
+            if rig::answers_commit(&frame) {
                 self.rebuild_rig();
             }
             filtered.clear();
@@ -241,100 +226,23 @@ impl SimBoard {
         }
     }
 
-    /// Follows the plan upload in `bytes`, which the link is about to read,
-    /// by the dispatcher's rules: a repeated id (not `Hello`) is a retry the
-    /// board answers from its cache, and exposures must come in order.
-    fn sniff_requests(&mut self, bytes: &[u8]) {
-        let mut requests = Vec::new();
-        self.request_sniffer.feed(bytes, |frame| {
-            if let Ok(host_frame) = frame.and_then(decode_payload::<HostFrame>) {
-                requests.push(host_frame);
-            }
-        });
-        for HostFrame { id, request } in requests {
-            let retry =
-                self.last_request_id == Some(id) && !matches!(request, Request::Hello { .. });
-            self.last_request_id = Some(id);
-            match request {
-                _ if retry => {}
-                Request::BeginPlan(header) => self.uploading = Some(ScanPlan::from_header(&header)),
-                Request::AddExposure { index, exposure } => {
-                    if let Some(plan) = self.uploading.as_mut() {
-                        if index as usize == plan.exposures.len() {
-                            // A capacity refusal here is the board's too.
-                            let _ = plan.push_wire_exposure(&exposure);
-                        }
-                    }
-                }
-                _ => {}
-            }
-        }
-    }
-
-    /// Whether `frame` is the board's `PlanCommitted` answer.
-    fn answers_commit(&self, frame: &[u8]) -> bool {
-        let mut acc = FrameAccumulator::new();
-        let mut committed = false;
-        acc.feed(frame, |f| {
-            committed |= matches!(
-                f.and_then(decode_payload::<BoardFrame>),
-                Ok(BoardFrame::Response {
-                    response: Response::PlanCommitted(_),
-                    ..
-                })
-            );
-        });
-        committed
-    }
-
-    /// Builds the heads of the committed plan from their profiles. Only runs
-    /// when a commit succeeded, which the sequencer allows only while no
-    /// scan is armed or running, so no device is swapped mid-scan. The edge
-    /// and capture logs restart too, so a long-serving board keeps only the
-    /// current plan's scans.
+    /// Builds the rig for the plan just committed. Only runs when a commit
+    /// succeeded, which the sequencer allows only while no scan is armed or
+    /// running, so no device is swapped mid-scan. The edge and capture logs
+    /// restart too, so a long-serving board keeps only the current plan's
+    /// scans.
     fn rebuild_rig(&mut self) {
-        let Some(plan) = self.uploading.take() else {
+        let Some(plan) = self.upload.take_plan() else {
             return;
         };
         self.hw.clear_log();
-        // The plan as read must be the plan the dispatcher compiled; if it
-        // ever is not, the heads still follow the header but the DMDs keep
-        // their profile's display time.
-        let same_table = plan
-            .clone()
-            .validate(&BoardLimits::STM32G474)
-            .ok()
-            .and_then(|valid| EdgeTable::compile(&valid).ok())
-            .is_some_and(|table| table == *self.link.dispatcher().sequencer().table());
-        if !same_table {
-            tracing::warn!("simulated rig: the sniffed plan differs from the committed one");
-        }
-        for (index, slot) in self.hw.heads_mut().iter_mut().enumerate() {
-            let wiring = plan.heads.get(index).copied().unwrap_or(ABSENT_HEAD);
-            let mut camera = camera_config(wiring.camera);
-            camera.missed_triggers = self.config.faults.missed_by_camera(index as u8);
-            let seed = self
-                .config
-                .seed
-                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-                .wrapping_add(index as u64);
-            *slot = SimHead::new(wiring, projector_config(wiring.projector), camera, seed);
-            if same_table {
-                slot.projector
-                    .set_display_sequence(display_sequence_ns(&plan, index));
-            }
+        let committed = self.link.dispatcher().sequencer().table();
+        let heads = rig::build_heads(&plan, committed, &self.config);
+        for (slot, head) in self.hw.heads_mut().iter_mut().zip(heads) {
+            *slot = head;
         }
         self.rig_heads = plan.heads.to_vec();
     }
-}
-
-/// How long head `head`'s DMD shows each pattern, in the order its triggers
-/// come within one cycle.
-fn display_sequence_ns(plan: &ScanPlan, head: usize) -> Vec<u64> {
-    plan.exposures()
-        .filter(|e| e.entry.heads.contains(head))
-        .flat_map(|e| e.slots.iter().map(|slot| slot.display_ns as u64))
-        .collect()
 }
 
 #[cfg(test)]
@@ -343,7 +251,10 @@ mod tests {
     use crate::faults::{MissedTrigger, StreamFaults};
     use protocol::limits::MAX_FRAME_BYTES;
     use protocol::plan::examples;
-    use protocol::{encode_frame, Event, ScanPlan, WireError};
+    use protocol::{
+        decode_payload, encode_frame, BoardFrame, Event, FrameAccumulator, HostFrame,
+        ProjectorModel, Request, Response, ScanPlan, WireError,
+    };
 
     /// Sends one request and returns every frame the board answered with.
     fn call(board: &mut SimBoard, id: u32, request: Request) -> Vec<BoardFrame> {
