@@ -105,6 +105,12 @@ fn print_report(args: &Args, threads: usize, t: &SoakTotals, seconds: f64) {
         "hil-sim soak --scans {} --seed {}  ({threads} threads, {seconds:.1} s)",
         args.scans, args.seed
     );
+    if let Some(k) = args.camera_miss {
+        println!("injected: every camera misses trigger {k} of each scan");
+    }
+    if args.jitter_scale != 1 {
+        println!("injected: device jitter {} x its profile", args.jitter_scale);
+    }
     println!(
         "scans                      {:>14}  (dual-head {}, head-only {}, 24-pattern multiplexed {}, flood {})",
         t.scans, t.by_kind[0], t.by_kind[1], t.by_kind[2], t.by_kind[3]
