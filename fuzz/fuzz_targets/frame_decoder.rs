@@ -22,9 +22,18 @@ fuzz_target!(|data: &[u8]| {
         });
     }
     let mut buf = [0u8; MAX_FRAME_BYTES];
-    let n = encode_frame(&HostFrame { id: 7, request: Request::Ping { nonce: 1 } }, &mut buf).unwrap();
+    let n = encode_frame(
+        &HostFrame {
+            id: 7,
+            request: Request::Ping { nonce: 1 },
+        },
+        &mut buf,
+    )
+    .unwrap();
     let mut got = None;
     acc.feed(&[0], |_| {});
-    acc.feed(&buf[..n], |frame| got = Some(frame.and_then(decode_payload::<HostFrame>)));
+    acc.feed(&buf[..n], |frame| {
+        got = Some(frame.and_then(decode_payload::<HostFrame>))
+    });
     assert_eq!(got.unwrap().unwrap().id, 7);
 });

@@ -30,13 +30,19 @@ struct FuzzHardware {
 impl TriggerHardware for FuzzHardware {
     fn load(&mut self, table: &EdgeTable) -> Result<(), HardwareFault> {
         if table.edges().len() > 1_000 {
-            return Err(HardwareFault::TableTooLarge { edges: table.edges().len() as u16, capacity: 1_000 });
+            return Err(HardwareFault::TableTooLarge {
+                edges: table.edges().len() as u16,
+                capacity: 1_000,
+            });
         }
         Ok(())
     }
     fn start(&mut self, start_tick: u64, _repeat_count: u32) -> Result<(), HardwareFault> {
         if start_tick <= self.now {
-            return Err(HardwareFault::StartInPast { start_tick, now_tick: self.now });
+            return Err(HardwareFault::StartInPast {
+                start_tick,
+                now_tick: self.now,
+            });
         }
         Ok(())
     }
@@ -55,7 +61,11 @@ impl TriggerHardware for FuzzHardware {
 fn info() -> DeviceInfo {
     DeviceInfo {
         protocol_version: PROTOCOL_VERSION,
-        firmware_version: FirmwareVersion { major: 0, minor: 1, patch: 0 },
+        firmware_version: FirmwareVersion {
+            major: 0,
+            minor: 1,
+            patch: 0,
+        },
         board_id: 1,
         limits: BoardLimits::STM32G474,
         reset_cause: ResetCause::Simulated,
@@ -110,12 +120,31 @@ fn valid_upload(seed: &[u8], out: &mut Vec<u8>) {
     s[..seed.len().min(8)].copy_from_slice(&seed[..seed.len().min(8)]);
     let mut bits = SplitMix64(u64::from_le_bytes(s));
     let plan = random_plan(random_kind(&mut bits), &mut bits);
-    encode(&HostFrame { id: 1, request: Request::BeginPlan(plan.header()) }, out);
+    encode(
+        &HostFrame {
+            id: 1,
+            request: Request::BeginPlan(plan.header()),
+        },
+        out,
+    );
     for i in 0..plan.exposures.len() {
         let exposure = plan.wire_exposure(i).expect("in range");
-        encode(&HostFrame { id: 2 + i as u32, request: Request::AddExposure { index: i as u16, exposure } }, out);
+        encode(
+            &HostFrame {
+                id: 2 + i as u32,
+                request: Request::AddExposure {
+                    index: i as u16,
+                    exposure,
+                },
+            },
+            out,
+        );
     }
-    for (id, request) in [(100, Request::CommitPlan), (101, Request::Arm), (102, Request::Start { delay_ns: 0 })] {
+    for (id, request) in [
+        (100, Request::CommitPlan),
+        (101, Request::Arm),
+        (102, Request::Start { delay_ns: 0 }),
+    ] {
         encode(&HostFrame { id, request }, out);
     }
 }
@@ -144,7 +173,11 @@ fuzz_target!(|data: &[u8]| {
                 for (i, pair) in segment.chunks(2).enumerate() {
                     let tick = hw.now + pair.iter().map(|&b| b as u64).product::<u64>() * 97;
                     let level = if i % 2 == 0 { Level::High } else { Level::Low };
-                    hw.captures.push(Capture { feedback_channel: pair[0] % 5, level, tick });
+                    hw.captures.push(Capture {
+                        feedback_channel: pair[0] % 5,
+                        level,
+                        tick,
+                    });
                 }
                 let step: u64 = segment.iter().map(|&b| b as u64).sum::<u64>() << 10;
                 hw.now += step;

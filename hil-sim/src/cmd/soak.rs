@@ -109,7 +109,10 @@ fn print_report(args: &Args, threads: usize, t: &SoakTotals, seconds: f64) {
         println!("injected: every camera misses trigger {k} of each scan");
     }
     if args.jitter_scale != 1 {
-        println!("injected: device jitter {} x its profile", args.jitter_scale);
+        println!(
+            "injected: device jitter {} x its profile",
+            args.jitter_scale
+        );
     }
     println!(
         "scans                      {:>14}  (dual-head {}, head-only {}, 24-pattern multiplexed {}, flood {})",
