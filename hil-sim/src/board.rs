@@ -16,9 +16,14 @@
 //! The simulated rig follows the plan: when a plan is committed, the heads
 //! it names (projector and camera models, wiring) are built from their
 //! profiles, with the fault plan's missed triggers, and their jitter seeded
-//! from the board seed and the head index.
+//! from the board seed and the head index; each DMD shows its patterns for
+//! the plan's `display_ns`, as a host programs a real DMD's pattern table.
+//! The board learns the plan by reading the upload as its dispatcher does
+//! (same order and retry rules) and checks that it compiles to the very
+//! table the dispatcher committed.
 
 pub mod port;
+mod rig;
 pub mod serve;
 
 use std::collections::VecDeque;
@@ -26,13 +31,11 @@ use std::collections::VecDeque;
 use board_core::{Link, TriggerHardware};
 use protocol::limits::MAX_HEADS;
 use protocol::{
-    decode_payload, BoardFrame, BoardLimits, CameraModel, DeviceInfo, FirmwareVersion,
-    FrameAccumulator, HeadConfig, HostFrame, ProjectorModel, Request, ResetCause, Response,
-    ScanState, PROTOCOL_VERSION,
+    BoardLimits, DeviceInfo, FirmwareVersion, HeadConfig, ResetCause, ScanState, PROTOCOL_VERSION,
 };
 
 use crate::faults::{ByteFilter, FaultPlan};
-use crate::sim_hardware::{camera_config, projector_config, SimHardware, SimHead};
+use crate::sim_hardware::{SimHardware, SimHead};
 
 pub use port::{BoardPort, ChannelPort, PortError};
 pub use serve::{serve, spawn_on_channels, spawn_on_pty, SimBoardHandle};
@@ -54,16 +57,6 @@ const TAIL_STEPS_PER_S: u64 = 1_000;
 /// reading stalls virtual time instead of growing the queue without end.
 const MAX_QUEUED_OUTPUT: usize = 16 * 1024;
 
-/// Wiring of an absent head: channels no table uses, so it never sees an edge.
-const ABSENT_HEAD: HeadConfig = HeadConfig {
-    projector: ProjectorModel::Dlpc350,
-    camera: CameraModel::Mono6Mp,
-    projector_trigger_channel: u8::MAX,
-    camera_trigger_channel: u8::MAX,
-    projector_feedback_channel: u8::MAX,
-    camera_feedback_channel: u8::MAX,
-};
-
 /// The simulated board: link, hardware, devices, faults, output queue.
 #[derive(Debug)]
 pub struct SimBoard {
@@ -73,10 +66,9 @@ pub struct SimBoard {
     to_board: ByteFilter,
     to_host: ByteFilter,
     output: VecDeque<u8>,
-    // The rig follows the plan: heads seen in `BeginPlan`, applied when the
-    // board answers `PlanCommitted`.
-    request_sniffer: FrameAccumulator,
-    uploading_heads: Option<Vec<HeadConfig>>,
+    // The rig follows the plan: the upload as the dispatcher reads it,
+    // applied when the board answers `PlanCommitted`.
+    upload: rig::UploadReader,
     rig_heads: Vec<HeadConfig>,
 }
 
@@ -84,7 +76,7 @@ impl SimBoard {
     /// A board at virtual tick 0, idle, no plan.
     pub fn new(config: SimBoardConfig) -> Self {
         let heads = (0..MAX_HEADS)
-            .map(|_| SimHead::from_profiles(ABSENT_HEAD, 0))
+            .map(|_| SimHead::from_profiles(rig::ABSENT_HEAD, 0))
             .collect();
         let to_board = ByteFilter::new(config.faults.to_board.clone());
         let to_host = ByteFilter::new(config.faults.to_host.clone());
@@ -94,8 +86,7 @@ impl SimBoard {
             to_board,
             to_host,
             output: VecDeque::new(),
-            request_sniffer: FrameAccumulator::new(),
-            uploading_heads: None,
+            upload: rig::UploadReader::default(),
             rig_heads: Vec::new(),
             config,
         }
@@ -162,7 +153,7 @@ impl SimBoard {
         }
         let mut survived = Vec::with_capacity(bytes.len());
         self.to_board.apply(bytes, &mut survived);
-        self.sniff_requests(&survived);
+        self.upload.read(&survived);
         let mut frames = Vec::new();
         self.link
             .receive(&survived, &mut self.hw, &mut |f| frames.push(f.to_vec()));
@@ -226,7 +217,7 @@ impl SimBoard {
         }
         let mut filtered = Vec::new();
         for frame in frames {
-            if self.answers_commit(&frame) {
+            if rig::answers_commit(&frame) {
                 self.rebuild_rig();
             }
             filtered.clear();
@@ -235,61 +226,22 @@ impl SimBoard {
         }
     }
 
-    /// Remembers the heads of a `BeginPlan` the link is about to read.
-    fn sniff_requests(&mut self, bytes: &[u8]) {
-        let mut headers = Vec::new();
-        self.request_sniffer.feed(bytes, |frame| {
-            if let Ok(HostFrame {
-                request: Request::BeginPlan(header),
-                ..
-            }) = frame.and_then(decode_payload::<HostFrame>)
-            {
-                headers.push(header.heads.to_vec());
-            }
-        });
-        if let Some(heads) = headers.pop() {
-            self.uploading_heads = Some(heads);
-        }
-    }
-
-    /// Whether `frame` is the board's `PlanCommitted` answer.
-    fn answers_commit(&self, frame: &[u8]) -> bool {
-        let mut acc = FrameAccumulator::new();
-        let mut committed = false;
-        acc.feed(frame, |f| {
-            committed |= matches!(
-                f.and_then(decode_payload::<BoardFrame>),
-                Ok(BoardFrame::Response {
-                    response: Response::PlanCommitted(_),
-                    ..
-                })
-            );
-        });
-        committed
-    }
-
-    /// Builds the heads of the committed plan from their profiles. Only runs
-    /// when a commit succeeded, which the sequencer allows only while no
-    /// scan is armed or running, so no device is swapped mid-scan. The edge
-    /// and capture logs restart too, so a long-serving board keeps only the
-    /// current plan's scans.
+    /// Builds the rig for the plan just committed. Only runs when a commit
+    /// succeeded, which the sequencer allows only while no scan is armed or
+    /// running, so no device is swapped mid-scan. The edge and capture logs
+    /// restart too, so a long-serving board keeps only the current plan's
+    /// scans.
     fn rebuild_rig(&mut self) {
-        let Some(heads) = self.uploading_heads.take() else {
+        let Some(plan) = self.upload.take_plan() else {
             return;
         };
         self.hw.clear_log();
-        for (index, slot) in self.hw.heads_mut().iter_mut().enumerate() {
-            let wiring = heads.get(index).copied().unwrap_or(ABSENT_HEAD);
-            let mut camera = camera_config(wiring.camera);
-            camera.missed_triggers = self.config.faults.missed_by_camera(index as u8);
-            let seed = self
-                .config
-                .seed
-                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-                .wrapping_add(index as u64);
-            *slot = SimHead::new(wiring, projector_config(wiring.projector), camera, seed);
+        let committed = self.link.dispatcher().sequencer().table();
+        let heads = rig::build_heads(&plan, committed, &self.config);
+        for (slot, head) in self.hw.heads_mut().iter_mut().zip(heads) {
+            *slot = head;
         }
-        self.rig_heads = heads;
+        self.rig_heads = plan.heads.to_vec();
     }
 }
 
@@ -299,7 +251,10 @@ mod tests {
     use crate::faults::{MissedTrigger, StreamFaults};
     use protocol::limits::MAX_FRAME_BYTES;
     use protocol::plan::examples;
-    use protocol::{encode_frame, Event, ScanPlan, WireError};
+    use protocol::{
+        decode_payload, encode_frame, BoardFrame, Event, FrameAccumulator, HostFrame,
+        ProjectorModel, Request, Response, ScanPlan, WireError,
+    };
 
     /// Sends one request and returns every frame the board answered with.
     fn call(board: &mut SimBoard, id: u32, request: Request) -> Vec<BoardFrame> {
@@ -388,6 +343,16 @@ mod tests {
         assert_eq!(edges.len(), 3 * 25 * 2);
         assert!(edges.iter().all(|e| e.tick > start_tick));
         assert_eq!(board.rig_heads(), plan.heads.as_slice());
+        // The DMD shows each pattern for the plan's 200 us, less at most the
+        // jitter by which the next pattern may come early.
+        let jitter_ns = ProjectorModel::Dlpc900.profile().jitter_ns as u64;
+        for shown in board.hardware().heads()[0].projector.displayed() {
+            let display_ns = shown.end_ns - shown.start_ns;
+            assert!(
+                display_ns <= 200_000 && display_ns >= 200_000 - 2 * jitter_ns,
+                "{shown:?}"
+            );
+        }
     }
 
     #[test]

@@ -14,10 +14,10 @@ use std::time::Duration;
 #[derive(Debug, thiserror::Error)]
 pub enum PtyError {
     /// `openpty(3)` refused (no free ptys, no /dev/ptmx, ...).
-    #[error("openpty failed: {0}")]
+    #[error("openpty failed")]
     Open(#[source] io::Error),
     /// The slave's termios could not be read or set to raw mode.
-    #[error("could not put pty {path} in raw mode: {source}")]
+    #[error("could not put pty {path} in raw mode")]
     RawMode {
         /// The slave path whose terminal settings failed.
         path: PathBuf,
@@ -25,7 +25,7 @@ pub enum PtyError {
         source: io::Error,
     },
     /// A file-descriptor flag (non-blocking, close-on-exec) could not be set.
-    #[error("could not set flags on pty fd {fd}: {source}")]
+    #[error("could not set flags on pty fd {fd}")]
     Flags {
         /// The descriptor concerned.
         fd: RawFd,
@@ -33,10 +33,10 @@ pub enum PtyError {
         source: io::Error,
     },
     /// The slave's path could not be found with `ttyname_r(3)`.
-    #[error("could not name the pty slave: {0}")]
+    #[error("could not name the pty slave")]
     Name(#[source] io::Error),
     /// Reading, writing or polling the master failed.
-    #[error("pty I/O failed: {0}")]
+    #[error("pty I/O failed")]
     Io(#[from] io::Error),
 }
 

@@ -20,7 +20,7 @@ use protocol::{
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::sim_hardware::{RecordedEdge, SimHardware, SimHead};
+use crate::sim_hardware::{camera_config, projector_config, RecordedEdge, SimHardware, SimHead};
 
 /// Why one soak scan could not be run at all.
 #[derive(Debug, thiserror::Error)]
@@ -131,45 +131,61 @@ fn kind_index(kind: PlanKind) -> usize {
 
 /// Scan `index` of a soak with `seed`: its own random stream, so results do
 /// not depend on how scans are spread over threads.
-pub fn soak_scan(seed: u64, index: u64, camera_miss: Option<u64>) -> Result<SoakTotals, SoakError> {
+pub fn soak_scan(seed: u64, index: u64, faults: &DeviceFaults) -> Result<SoakTotals, SoakError> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
     let mut bits = || rng.next_u64();
     let kind = random_kind(&mut bits);
     let plan = random_plan(kind, &mut bits);
     let device_seed = bits();
-    let mut totals = run_scan(&plan, device_seed, camera_miss)?;
+    let mut totals = run_scan(&plan, device_seed, faults)?;
     totals.by_kind[kind_index(kind)] = 1;
     Ok(totals)
 }
 
-/// Runs `plan` on a fresh simulated board through the dispatcher (upload,
-/// commit, arm, start) and checks it; `camera_miss` makes every camera miss
-/// that trigger index (fault injection).
-pub fn run_scan(
-    plan: &ScanPlan,
-    device_seed: u64,
-    camera_miss: Option<u64>,
-) -> Result<SoakTotals, SoakError> {
-    let limits = BoardLimits::STM32G474;
-    let heads = plan
-        .heads
+/// Device faults a soak can inject to see its checks catch them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DeviceFaults {
+    /// Every camera misses this trigger index (counted from 0 per scan).
+    pub camera_miss: Option<u64>,
+    /// Device latency jitter is this many times the profile's (1 = spec).
+    pub jitter_scale: u64,
+}
+
+impl DeviceFaults {
+    /// Devices exactly as their profiles say.
+    pub const NONE: DeviceFaults = DeviceFaults {
+        camera_miss: None,
+        jitter_scale: 1,
+    };
+}
+
+/// The simulated heads of `plan`, seeded from `device_seed`, with `faults`.
+fn sim_heads(plan: &ScanPlan, device_seed: u64, faults: &DeviceFaults) -> Vec<SimHead> {
+    plan.heads
         .iter()
         .enumerate()
         .map(|(i, h)| {
-            let mut head = SimHead::from_profiles(*h, device_seed.wrapping_add(i as u64));
-            if let Some(k) = camera_miss {
-                let mut config = head.camera.config().clone();
-                config.missed_triggers.insert(k);
-                head = SimHead::new(
-                    *h,
-                    *head.projector.config(),
-                    config,
-                    device_seed.wrapping_add(i as u64),
-                );
+            let mut projector = projector_config(h.projector);
+            let mut camera = camera_config(h.camera);
+            projector.trigger_delay.jitter_ns *= faults.jitter_scale;
+            camera.trigger_delay.jitter_ns *= faults.jitter_scale;
+            if let Some(k) = faults.camera_miss {
+                camera.missed_triggers.insert(k);
             }
-            head
+            SimHead::new(*h, projector, camera, device_seed.wrapping_add(i as u64))
         })
-        .collect();
+        .collect()
+}
+
+/// Runs `plan` on a fresh simulated board through the dispatcher (upload,
+/// commit, arm, start) and checks it, devices misbehaving as `faults` says.
+pub fn run_scan(
+    plan: &ScanPlan,
+    device_seed: u64,
+    faults: &DeviceFaults,
+) -> Result<SoakTotals, SoakError> {
+    let limits = BoardLimits::STM32G474;
+    let heads = sim_heads(plan, device_seed, faults);
     let mut hw = SimHardware::new(limits, heads);
     let mut board = Dispatcher::new(sim_device_info(limits));
     let start_tick = upload_and_start(&mut board, &mut hw, plan)?;
@@ -387,7 +403,7 @@ mod tests {
     #[test]
     fn every_example_runs_clean() {
         for (i, plan) in examples::all().iter().enumerate() {
-            let t = run_scan(plan, i as u64, None).unwrap();
+            let t = run_scan(plan, i as u64, &DeviceFaults::NONE).unwrap();
             assert_eq!(t.done, 1, "example {i}: {t:?}");
             assert_eq!(
                 (t.feedback_missing, t.feedback_late, t.feedback_unexpected),
@@ -411,7 +427,15 @@ mod tests {
     #[test]
     fn a_camera_missing_a_trigger_is_reported_missing() {
         let plan = examples::multiplexed_24_at_5khz(3);
-        let t = run_scan(&plan, 7, Some(1)).unwrap();
+        let t = run_scan(
+            &plan,
+            7,
+            &DeviceFaults {
+                camera_miss: Some(1),
+                jitter_scale: 1,
+            },
+        )
+        .unwrap();
         // The second exposure never happened: its rising and falling
         // exposure-active edges are missing, nothing else.
         assert_eq!(t.feedback_missing, 2, "{t:?}");
@@ -421,10 +445,37 @@ mod tests {
     }
 
     #[test]
+    fn jitter_beyond_the_profile_is_reported_late() {
+        let plan = examples::multiplexed_24_at_5khz(3);
+        let t = run_scan(
+            &plan,
+            3,
+            &DeviceFaults {
+                camera_miss: None,
+                jitter_scale: 20,
+            },
+        )
+        .unwrap();
+        assert!(t.feedback_late > 0, "{t:?}");
+        // 20 x 100 ns peak jitter: errors beyond the 100 ns tolerance, below 2 us.
+        assert!(
+            t.worst_feedback_error_ticks > 18 && t.worst_feedback_error_ticks <= 341,
+            "{t:?}"
+        );
+        assert_eq!(t.output_mismatches, 0);
+    }
+
+    #[test]
+    fn the_same_scan_index_gives_the_same_result() {
+        let a = soak_scan(5, 17, &DeviceFaults::NONE).unwrap();
+        assert_eq!(a, soak_scan(5, 17, &DeviceFaults::NONE).unwrap());
+    }
+
+    #[test]
     fn random_scans_run_clean() {
         let mut all = SoakTotals::default();
         for i in 0..300 {
-            all.merge(&soak_scan(1, i, None).unwrap());
+            all.merge(&soak_scan(1, i, &DeviceFaults::NONE).unwrap());
         }
         assert_eq!(all.scans, 300);
         assert!(all.by_kind.iter().all(|&n| n > 0), "{all:?}");

@@ -102,3 +102,39 @@ fn port_or_sim_is_required() {
     assert!(!out.status.success());
     assert!(text(&out.stderr).contains("--port"));
 }
+
+#[test]
+fn abort_leaves_the_board_idle_or_aborted() {
+    let out = slscan(&["board", "abort", "--sim"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    // A fresh board has nothing to abort: it stays Idle.
+    assert!(
+        text(&out.stdout).contains("state           Idle"),
+        "{}",
+        text(&out.stdout)
+    );
+}
+
+#[test]
+fn abort_stops_a_scan_another_session_left_armed() {
+    use slscan::board::{BoardClient, ClientConfig, SerialTransport};
+    let board =
+        hil_sim::board::spawn_on_pty(hil_sim::board::SimBoardConfig::default()).expect("pty board");
+    let path = board.path().expect("pty path").to_path_buf();
+    {
+        let transport = SerialTransport::open(&path, 115_200).expect("open");
+        let (mut client, _) =
+            BoardClient::connect(transport, ClientConfig::default()).expect("hello");
+        client
+            .upload_plan(&protocol::plan::examples::dual_head_psp(1))
+            .expect("upload");
+        client.arm().expect("arm");
+    }
+    let out = slscan(&["board", "abort", "--port", &path.to_string_lossy()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stdout).contains("state           Aborted"),
+        "{}",
+        text(&out.stdout)
+    );
+}

@@ -4,7 +4,139 @@
 use serde::{Deserialize, Serialize};
 
 use crate::messages::ScanState;
-use crate::plan::{CapacityError, PlanError};
+use crate::plan::CapacityError;
+
+/// Why a plan was refused. Indices are positions in the plan's cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PlanError {
+    /// The plan has no heads.
+    NoHeads,
+    /// The plan has no exposures.
+    NoExposures,
+    /// A head names a channel the board does not have.
+    ChannelOutOfRange {
+        /// Head index (0 = A).
+        head: u8,
+        /// The channel named.
+        channel: u8,
+        /// Channels the board has of that kind.
+        available: u8,
+    },
+    /// Two heads (or a head's projector and camera) share an output or
+    /// feedback channel.
+    ChannelReused {
+        /// The channel named twice.
+        channel: u8,
+    },
+    /// `repeat_count` is 0 or above the board's maximum.
+    RepeatCountOutOfRange {
+        /// The requested count.
+        count: u32,
+        /// The board's maximum.
+        max: u32,
+    },
+    /// The repeat period is zero or does not fit the 32-bit timer.
+    PeriodOutOfRange {
+        /// The requested period.
+        period_ns: u32,
+    },
+    /// More exposures than the board holds.
+    TooManyExposures {
+        /// Exposures in the plan.
+        count: u16,
+        /// The board's maximum.
+        max: u16,
+    },
+    /// More pattern slots than the board holds.
+    TooManySlots {
+        /// Slots in the plan.
+        count: u16,
+        /// The board's maximum.
+        max: u16,
+    },
+    /// An exposure's slot range lies outside the plan's slot list.
+    SlotRangeInvalid {
+        /// Exposure index.
+        exposure: u16,
+    },
+    /// An exposure names no head, or a head the plan does not have.
+    UnknownHead {
+        /// Exposure index.
+        exposure: u16,
+        /// The head mask.
+        heads: u8,
+    },
+    /// Exposures are not listed in order of start time.
+    ExposuresOutOfOrder {
+        /// Index of the exposure that starts before its predecessor.
+        exposure: u16,
+    },
+    /// An exposure is shorter than its camera allows.
+    ExposureTooShort {
+        /// Exposure index.
+        exposure: u16,
+        /// Requested exposure time.
+        duration_ns: u32,
+        /// The camera's minimum.
+        min_ns: u32,
+    },
+    /// An exposure (or a projector trigger pulse in it) does not end before
+    /// the cycle's repeat period, counted in timer ticks.
+    ExposureBeyondPeriod {
+        /// Exposure index.
+        exposure: u16,
+        /// End of the exposure from the cycle start.
+        end_ns: u64,
+        /// The repeat period.
+        period_ns: u32,
+    },
+    /// Two exposures of one camera overlap or come faster than its frame
+    /// rate (also across the cycle wrap when the plan repeats).
+    OverlappingExposures {
+        /// Head index.
+        head: u8,
+        /// The earlier exposure.
+        first: u16,
+        /// The later exposure.
+        second: u16,
+    },
+    /// A pattern is shown shorter than, or triggered sooner after the
+    /// previous one than, the DMD's minimum pattern period.
+    PatternPeriodTooShort {
+        /// Exposure index.
+        exposure: u16,
+        /// Slot index within the exposure.
+        slot: u16,
+        /// Requested display time or trigger spacing, whichever is short.
+        period_ns: u64,
+        /// The projector's minimum.
+        min_ns: u32,
+    },
+    /// A pattern's slot starts before the previous pattern's display ended.
+    SlotsOverlap {
+        /// Exposure index.
+        exposure: u16,
+        /// Slot index within the exposure.
+        slot: u16,
+    },
+    /// A pattern's light (after latency, +-jitter) is not inside its
+    /// exposure (after latency, +-jitter) with the plan's margin.
+    PatternOutsideExposure {
+        /// Exposure index.
+        exposure: u16,
+        /// Slot index within the exposure.
+        slot: u16,
+        /// Head index.
+        head: u8,
+    },
+}
+
+impl core::fmt::Display for PlanError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        // The Debug form carries every offending value with its unit.
+        write!(f, "invalid scan plan: {self:?}")
+    }
+}
 
 /// A frame could not be read or written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -7,6 +7,21 @@
 //! [`FrameAccumulator`] takes bytes as they arrive (any chunking), returns
 //! each payload whose CRC checks, and reports garbage as a [`FrameError`]
 //! instead of panicking: it resynchronises at the next `0x00`.
+//!
+//! ```
+//! use protocol::{decode_payload, encode_frame, FrameAccumulator, HostFrame, Request};
+//! let mut wire = [0u8; 64];
+//! let n = encode_frame(&HostFrame { id: 3, request: Request::Ping { nonce: 9 } }, &mut wire).unwrap();
+//! assert_eq!(wire[n - 1], 0); // the delimiter
+//! let mut acc = FrameAccumulator::new();
+//! let mut got = Vec::new();
+//! // Garbage first, then the frame in two pieces.
+//! acc.feed(&[0x17, 0x00], |f| got.push(f.and_then(decode_payload::<HostFrame>)));
+//! acc.feed(&wire[..2], |f| got.push(f.and_then(decode_payload::<HostFrame>)));
+//! acc.feed(&wire[2..n], |f| got.push(f.and_then(decode_payload::<HostFrame>)));
+//! assert!(got[0].is_err());
+//! assert_eq!(got[1], Ok(HostFrame { id: 3, request: Request::Ping { nonce: 9 } }));
+//! ```
 
 use serde::{de::DeserializeOwned, Serialize};
 

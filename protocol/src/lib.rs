@@ -15,6 +15,14 @@
 //!   conversion.
 //! - [`error`]: errors that cross the wire.
 //!
+//! Why not postcard-rpc: its typed endpoints fit, but the board side must be
+//! one synchronous, allocation-free dispatch (bytes in, frames out) that the
+//! STM32's USB task, hil-sim's virtual-clock board and the fuzz targets all
+//! call the same way, and every frame needs an end-to-end CRC over a UART-like
+//! pty; postcard-rpc's server is tied to its async transports and its COBS
+//! frames carry no CRC. So we keep its shape (one shared wire crate, request
+//! ids, typed errors) on plain postcard + COBS + CRC-32.
+//!
 //! `no_std`, no allocation: every collection is a `heapless` container whose
 //! capacity is a constant in [`limits`].
 #![cfg_attr(not(feature = "std"), no_std)]

@@ -173,6 +173,12 @@ impl CameraModel {
 
 /// Timer ticks of a `timer_clock_hz` clock closest to `ns` (ties round up).
 /// Monotonic in `ns`, so an ordering of times survives the conversion.
+///
+/// ```
+/// use protocol::limits::ns_to_ticks;
+/// assert_eq!(ns_to_ticks(200_000, 170_000_000), 34_000); // one 5 kHz pattern
+/// assert_eq!(ns_to_ticks(4_807_692, 170_000_000), 817_308); // 208 Hz frame, rounded
+/// ```
 pub const fn ns_to_ticks(ns: u64, timer_clock_hz: u32) -> u64 {
     ((ns as u128 * timer_clock_hz as u128 + 500_000_000) / 1_000_000_000) as u64
 }

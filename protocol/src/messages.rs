@@ -169,7 +169,7 @@ pub struct ScanReport {
     pub expected: u32,
     /// Feedback edges within tolerance.
     pub on_time: u32,
-    /// Feedback edges outside tolerance but attributable.
+    /// Feedback edges outside tolerance (early or late) but attributable.
     pub late: u32,
     /// Expected feedback edges that never came.
     pub missing: u32,
@@ -240,7 +240,8 @@ pub enum Event {
         /// Board tick of the change.
         tick: u64,
     },
-    /// A feedback edge came outside its device's jitter tolerance.
+    /// A feedback edge came outside its device's jitter tolerance (late, or
+    /// early when `measured_tick < expected_tick`).
     FeedbackLate {
         /// Feedback input.
         feedback_channel: u8,

@@ -42,10 +42,10 @@ pub struct PtyRig {
 #[derive(Debug, thiserror::Error)]
 pub enum RigError {
     /// No pseudo-terminal for the board.
-    #[error("simulated board: {0}")]
+    #[error("simulated board")]
     Pty(#[from] PtyError),
     /// Opening the pty as a serial port, or the handshake, failed.
-    #[error("host client: {0}")]
+    #[error("host client")]
     Board(#[from] BoardError),
 }
 

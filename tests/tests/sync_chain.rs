@@ -209,6 +209,14 @@ fn d_uniform_flood_preliminaries_of_adaptive_projection() {
         "7 grey levels, one frame each"
     );
     assert_eq!(head.projector.displayed().len(), 7);
+    // Each flood is shown for the plan's display time (the DMD's pattern
+    // table follows the plan), wholly inside its exposure (checked above).
+    for shown in head.projector.displayed() {
+        assert_eq!(
+            shown.end_ns - shown.start_ns,
+            examples::SLOW_DISPLAY_NS as u64
+        );
+    }
 }
 
 #[test]

@@ -75,6 +75,8 @@ pub struct LineCursor {
     cycle: u32,
     index: usize,
     exhausted: bool,
+    /// (cycle, tick in cycle) of the edge last stepped past.
+    previous: Option<(u32, u32)>,
 }
 
 impl LineCursor {
@@ -84,6 +86,7 @@ impl LineCursor {
             cycle: 0,
             index: 0,
             exhausted: false,
+            previous: None,
         };
         c.seek(table, line);
         c
@@ -145,6 +148,9 @@ impl LineCursor {
         if self.exhausted {
             return;
         }
+        if let Some(e) = table.edges().get(self.index) {
+            self.previous = Some((self.cycle, e.tick));
+        }
         self.index += 1;
         self.seek(table, line);
     }
@@ -154,7 +160,7 @@ impl LineCursor {
         self.exhausted
     }
 
-    /// How far past an expected edge a capture may come and still be
+    /// How far after an expected edge a capture may come and still be
     /// attributed to it (as late): half the gap to the line's next expected
     /// edge (half a cycle after the last one), at least the tolerance.
     pub fn late_limit(&self, table: &EdgeTable, line: &FeedbackLine, start_tick: u64) -> u64 {
@@ -169,6 +175,28 @@ impl LineCursor {
             .peek(table, line, start_tick)
             .map_or(table.period_ticks() as u64 / 2, |n| (n.tick - now.tick) / 2);
         half_gap.max(line.tolerance_ticks as u64)
+    }
+
+    /// How far before an expected edge a capture may come and still be
+    /// attributed to it (as early): half the gap to the line's previous
+    /// expected edge, and never more than the latency (feedback cannot
+    /// precede the output edge that causes it); at least the tolerance. With
+    /// [`LineCursor::late_limit`] the windows of neighbouring edges never
+    /// overlap.
+    pub fn early_limit(&self, table: &EdgeTable, line: &FeedbackLine, start_tick: u64) -> u64 {
+        let Some(now) = self.peek(table, line, start_tick) else {
+            return line.tolerance_ticks as u64;
+        };
+        let half_gap = self.previous.map_or(u64::MAX, |(cycle, tick)| {
+            let previous = start_tick
+                + cycle as u64 * table.period_ticks() as u64
+                + tick as u64
+                + line.latency_ticks as u64;
+            (now.tick - previous.min(now.tick)) / 2
+        });
+        half_gap
+            .min(line.latency_ticks as u64)
+            .max(line.tolerance_ticks as u64)
     }
 }
 

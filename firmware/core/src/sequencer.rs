@@ -217,7 +217,8 @@ impl Sequencer {
             .position(|l| l.feedback_channel == feedback_channel)
     }
 
-    /// Attributes one capture to its line's expected edges: on time, late,
+    /// Attributes one capture to its line's expected edges: on time (within
+    /// the device's jitter), off time (early or late, counted as `late`),
     /// or unexpected; expected edges it skips past are missing.
     fn check_capture(&mut self, c: Capture) {
         let Some(i) = self.line_index(c.feedback_channel) else {
@@ -231,13 +232,22 @@ impl Sequencer {
                 return;
             };
             let tol = line.tolerance_ticks as u64;
-            let late_limit = self.cursors[i].late_limit(&self.table, &line, self.start_tick);
-            if c.tick + tol < e.tick {
+            let cursor = &self.cursors[i];
+            let early_limit = cursor.early_limit(&self.table, &line, self.start_tick);
+            let late_limit = cursor.late_limit(&self.table, &line, self.start_tick);
+            // Before this edge's window, or of the wrong level before it:
+            // belongs to no expected edge.
+            if c.tick + early_limit < e.tick || (c.level != e.level && c.tick < e.tick) {
                 self.unexpected(c);
                 return;
             }
             let error = c.tick.abs_diff(e.tick);
-            if c.level == e.level && error <= late_limit {
+            let limit = if c.tick < e.tick {
+                early_limit
+            } else {
+                late_limit
+            };
+            if c.level == e.level && error <= limit {
                 self.report.expected += 1;
                 self.report.worst_error_ticks = self
                     .report

@@ -418,6 +418,29 @@ fn late_missing_and_unexpected_feedback_are_reported() {
 }
 
 #[test]
+fn early_feedback_is_attributed_not_missing() {
+    // Every camera edge 200 ticks (1.2 us) early: outside the 18-tick
+    // tolerance, inside the 255-tick latency (feedback cannot come sooner).
+    let (report, events) = scripted_scan(|t, ch, _| Some(if ch == 1 { t - 200 } else { t }));
+    assert_eq!(
+        (report.late, report.missing, report.unexpected),
+        (2, 0, 0),
+        "{report:?}"
+    );
+    assert_eq!(report.worst_error_ticks, 200);
+    assert!(events.iter().any(|e| matches!(e, Event::FeedbackLate { measured_tick, expected_tick, .. } if measured_tick < expected_tick)));
+    // 300 ticks early would precede the trigger itself: not attributable.
+    let (report, _) = scripted_scan(|t, ch, level| {
+        Some(if (ch, level) == (1, Level::High) {
+            t - 300
+        } else {
+            t
+        })
+    });
+    assert_eq!((report.missing, report.unexpected), (1, 1), "{report:?}");
+}
+
+#[test]
 fn a_hardware_fault_stops_the_scan() {
     let mut b = Bench::new();
     b.upload(&examples::flood_preliminaries(1));

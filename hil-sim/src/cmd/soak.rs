@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use anyhow::Context;
-use hil_sim::soak::{soak_scan, SoakTotals};
+use hil_sim::soak::{soak_scan, DeviceFaults, SoakTotals};
 use protocol::limits::{ticks_to_ns, BoardLimits};
 
 /// Options of `hil-sim soak`.
@@ -25,6 +25,10 @@ pub struct Args {
     /// (to see the checks catch it).
     #[arg(long)]
     pub camera_miss: Option<u64>,
+    /// Fault injection: device latency jitter at this many times its
+    /// profile's peak (1 = as specified).
+    #[arg(long, default_value_t = 1)]
+    pub jitter_scale: u64,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -41,6 +45,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         indicatif::ProgressBar::new(args.scans)
     };
+    let faults = DeviceFaults {
+        camera_miss: args.camera_miss,
+        jitter_scale: args.jitter_scale,
+    };
+    let injected = faults != DeviceFaults::NONE;
     let next = AtomicU64::new(0);
     let started = Instant::now();
     let totals = std::thread::scope(|scope| -> anyhow::Result<SoakTotals> {
@@ -56,7 +65,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         }
                         let last = (first + 256).min(args.scans);
                         for index in first..last {
-                            let scan = soak_scan(args.seed, index, args.camera_miss)
+                            let scan = soak_scan(args.seed, index, &faults)
                                 .with_context(|| format!("scan {index} of seed {}", args.seed))?;
                             totals.merge(&scan);
                         }
@@ -83,7 +92,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         + totals.out_of_window
         + totals.device_missed
         + (totals.scans - totals.done);
-    if failed > 0 && args.camera_miss.is_none() {
+    if failed > 0 && !injected {
         anyhow::bail!("the soak found {failed} timing faults (see the table)");
     }
     Ok(())
@@ -96,6 +105,15 @@ fn print_report(args: &Args, threads: usize, t: &SoakTotals, seconds: f64) {
         "hil-sim soak --scans {} --seed {}  ({threads} threads, {seconds:.1} s)",
         args.scans, args.seed
     );
+    if let Some(k) = args.camera_miss {
+        println!("injected: every camera misses trigger {k} of each scan");
+    }
+    if args.jitter_scale != 1 {
+        println!(
+            "injected: device jitter {} x its profile",
+            args.jitter_scale
+        );
+    }
     println!(
         "scans                      {:>14}  (dual-head {}, head-only {}, 24-pattern multiplexed {}, flood {})",
         t.scans, t.by_kind[0], t.by_kind[1], t.by_kind[2], t.by_kind[3]

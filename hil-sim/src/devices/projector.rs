@@ -16,7 +16,8 @@ pub struct ProjectorConfig {
     /// also puts the next pattern on the mirrors after this delay.
     pub trigger_delay: Delay,
     /// How long each pattern stays on the mirrors, in nanoseconds (a following
-    /// pattern ends it earlier).
+    /// pattern ends it earlier), unless a display sequence is set
+    /// ([`Projector::set_display_sequence`]).
     pub display_ns: u64,
     /// The shortest pattern period the DMD accepts (its 1-bit rate limit). A
     /// trigger arriving sooner after the previous accepted one is ignored, as a
@@ -63,6 +64,7 @@ pub struct Projector {
     // is mirrored too (an ignored pulse leaves trigger-out quiet).
     mirroring: bool,
     last_out_ns: u64,
+    display_sequence_ns: Vec<u64>,
     displayed: Vec<Displayed>,
     ignored_triggers_ns: Vec<u64>,
 }
@@ -76,6 +78,7 @@ impl Projector {
             last_accepted_rise_ns: None,
             mirroring: false,
             last_out_ns: 0,
+            display_sequence_ns: Vec::new(),
             displayed: Vec::new(),
             ignored_triggers_ns: Vec::new(),
         }
@@ -84,6 +87,14 @@ impl Projector {
     /// The configuration this projector runs with.
     pub fn config(&self) -> &ProjectorConfig {
         &self.config
+    }
+
+    /// Sets how long each pattern is shown, pattern after pattern, the
+    /// sequence repeating: the exposure times of the DMD controller's pattern
+    /// table, which the host programs to match its scan plan. Empty: every
+    /// pattern for `config.display_ns`.
+    pub fn set_display_sequence(&mut self, display_ns: Vec<u64>) {
+        self.display_sequence_ns = display_ns;
     }
 
     /// A trigger-in edge at `at_ns` (edges in time order). Returns the
@@ -114,11 +125,16 @@ impl Projector {
         if let Some(previous) = self.displayed.last_mut() {
             previous.end_ns = previous.end_ns.min(edge.at_ns);
         }
+        let pattern_index = self.displayed.len();
+        let display_ns = match self.display_sequence_ns.len() {
+            0 => self.config.display_ns,
+            n => self.display_sequence_ns[pattern_index % n],
+        };
         self.displayed.push(Displayed {
-            pattern_index: self.displayed.len() as u32,
+            pattern_index: pattern_index as u32,
             trigger_ns: at_ns,
             start_ns: edge.at_ns,
-            end_ns: edge.at_ns + self.config.display_ns,
+            end_ns: edge.at_ns + display_ns,
         });
         Some(edge)
     }
@@ -217,6 +233,21 @@ mod tests {
         assert!(pulse(&mut p, 105_000, 115_000).1.is_some());
         assert_eq!(p.ignored_triggers_ns(), &[104_999]);
         assert_eq!(p.displayed().len(), 2);
+    }
+
+    #[test]
+    fn display_sequence_sets_each_pattern_and_repeats() {
+        let mut p = Projector::new(exact(), 0);
+        p.set_display_sequence(vec![10_000, 20_000]);
+        for k in 0..3u64 {
+            pulse(&mut p, k * 200_000, k * 200_000 + 5_000);
+        }
+        let shown: Vec<u64> = p
+            .displayed()
+            .iter()
+            .map(|d| d.end_ns - d.start_ns)
+            .collect();
+        assert_eq!(shown, vec![10_000, 20_000, 10_000]);
     }
 
     #[test]

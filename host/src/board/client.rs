@@ -430,7 +430,7 @@ mod tests {
                     ..
                 }
             ),
-            "{err}"
+            "{err:?}"
         );
         finish(client, board);
     }
@@ -447,7 +447,7 @@ mod tests {
                     ..
                 }
             ),
-            "{err}"
+            "{err:?}"
         );
         finish(client, board);
     }
@@ -519,7 +519,7 @@ mod tests {
                     ..
                 })
             ),
-            "{err}"
+            "{err:?}"
         );
         finish(client, board);
     }
@@ -532,7 +532,7 @@ mod tests {
         let err = client.ping(1).unwrap_err();
         assert!(
             matches!(err, BoardError::Link(LinkError::PortGone { .. })),
-            "{err}"
+            "{err:?}"
         );
     }
 }

@@ -8,7 +8,7 @@ use protocol::{FrameError, Response, ScanReport, ScanState, WireError};
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
     /// The serial port could not be opened (absent, busy, no permission).
-    #[error("could not open serial port {path}: {source}")]
+    #[error("could not open serial port {path}")]
     Open {
         /// The port path, e.g. `/dev/ttyACM0`.
         path: PathBuf,
@@ -16,7 +16,7 @@ pub enum LinkError {
         source: serialport::Error,
     },
     /// The port failed while reading or writing (unplugged, closed by the board).
-    #[error("serial port failed during {operation}: {source}")]
+    #[error("serial port failed during {operation}")]
     PortGone {
         /// `"read"` or `"write"`.
         operation: &'static str,
@@ -72,7 +72,7 @@ pub enum LinkError {
 #[derive(Debug, thiserror::Error)]
 pub enum BoardError {
     /// The link failed (timeout, port gone, unreadable frames).
-    #[error("link to the board failed: {0}")]
+    #[error("link to the board failed")]
     Link(#[from] LinkError),
     /// The board answered and refused the request.
     #[error("board refused {request} (id {id}): {error}")]

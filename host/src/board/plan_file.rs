@@ -9,7 +9,7 @@ use protocol::ScanPlan;
 #[derive(Debug, thiserror::Error)]
 pub enum PlanFileError {
     /// The file could not be read.
-    #[error("could not read plan file {path}: {source}")]
+    #[error("could not read plan file {path}")]
     Read {
         /// The file.
         path: PathBuf,
@@ -17,7 +17,7 @@ pub enum PlanFileError {
         source: std::io::Error,
     },
     /// The file is not a valid plan (syntax, missing field, over capacity).
-    #[error("plan file {path} is not a valid plan: {source}")]
+    #[error("plan file {path} is not a valid plan")]
     Parse {
         /// The file.
         path: PathBuf,
@@ -25,7 +25,7 @@ pub enum PlanFileError {
         source: serde_json::Error,
     },
     /// The file could not be written.
-    #[error("could not write plan file {path}: {source}")]
+    #[error("could not write plan file {path}")]
     Write {
         /// The file.
         path: PathBuf,
@@ -137,7 +137,7 @@ mod tests {
         std::fs::write(&broken, "{\"heads\": [").unwrap();
         let err = load_plan(&broken).unwrap_err();
         assert!(matches!(err, PlanFileError::Parse { .. }));
-        assert!(err.to_string().contains("broken.json"), "{err}");
+        assert!(err.to_string().contains("broken.json"), "{err:?}");
 
         // Three heads overflow the plan's capacity of two: caught while parsing.
         let mut value: serde_json::Value =

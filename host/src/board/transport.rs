@@ -190,7 +190,7 @@ mod tests {
                     ..
                 }
             ),
-            "{err}"
+            "{err:?}"
         );
         assert!(matches!(
             b.send(&[0]),

@@ -23,7 +23,8 @@ pub mod examples;
 pub mod random;
 mod validate;
 
-pub use validate::{PlanError, ValidPlan};
+pub use crate::error::PlanError;
+pub use validate::ValidPlan;
 
 use heapless::Vec;
 use serde::{Deserialize, Serialize};

@@ -4,142 +4,9 @@
 //! jitter included, so that any edge whose feedback stays within its device's
 //! jitter keeps every pattern inside its exposure with the plan's margin.
 
-use serde::{Deserialize, Serialize};
-
 use super::{ExposureEntry, ScanPlan};
+use crate::error::PlanError;
 use crate::limits::{ns_to_ticks, ns_to_ticks_ceil, BoardLimits, CameraProfile, ProjectorProfile};
-
-/// Why a plan was refused. Indices are positions in the plan's cycle.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum PlanError {
-    /// The plan has no heads.
-    NoHeads,
-    /// The plan has no exposures.
-    NoExposures,
-    /// A head names a channel the board does not have.
-    ChannelOutOfRange {
-        /// Head index (0 = A).
-        head: u8,
-        /// The channel named.
-        channel: u8,
-        /// Channels the board has of that kind.
-        available: u8,
-    },
-    /// Two heads (or a head's projector and camera) share an output or
-    /// feedback channel.
-    ChannelReused {
-        /// The channel named twice.
-        channel: u8,
-    },
-    /// `repeat_count` is 0 or above the board's maximum.
-    RepeatCountOutOfRange {
-        /// The requested count.
-        count: u32,
-        /// The board's maximum.
-        max: u32,
-    },
-    /// The repeat period is zero or does not fit the 32-bit timer.
-    PeriodOutOfRange {
-        /// The requested period.
-        period_ns: u32,
-    },
-    /// More exposures than the board holds.
-    TooManyExposures {
-        /// Exposures in the plan.
-        count: u16,
-        /// The board's maximum.
-        max: u16,
-    },
-    /// More pattern slots than the board holds.
-    TooManySlots {
-        /// Slots in the plan.
-        count: u16,
-        /// The board's maximum.
-        max: u16,
-    },
-    /// An exposure's slot range lies outside the plan's slot list.
-    SlotRangeInvalid {
-        /// Exposure index.
-        exposure: u16,
-    },
-    /// An exposure names no head, or a head the plan does not have.
-    UnknownHead {
-        /// Exposure index.
-        exposure: u16,
-        /// The head mask.
-        heads: u8,
-    },
-    /// Exposures are not listed in order of start time.
-    ExposuresOutOfOrder {
-        /// Index of the exposure that starts before its predecessor.
-        exposure: u16,
-    },
-    /// An exposure is shorter than its camera allows.
-    ExposureTooShort {
-        /// Exposure index.
-        exposure: u16,
-        /// Requested exposure time.
-        duration_ns: u32,
-        /// The camera's minimum.
-        min_ns: u32,
-    },
-    /// An exposure (or a projector trigger pulse in it) does not end before
-    /// the cycle's repeat period, counted in timer ticks.
-    ExposureBeyondPeriod {
-        /// Exposure index.
-        exposure: u16,
-        /// End of the exposure from the cycle start.
-        end_ns: u64,
-        /// The repeat period.
-        period_ns: u32,
-    },
-    /// Two exposures of one camera overlap or come faster than its frame
-    /// rate (also across the cycle wrap when the plan repeats).
-    OverlappingExposures {
-        /// Head index.
-        head: u8,
-        /// The earlier exposure.
-        first: u16,
-        /// The later exposure.
-        second: u16,
-    },
-    /// A pattern is shown shorter than, or triggered sooner after the
-    /// previous one than, the DMD's minimum pattern period.
-    PatternPeriodTooShort {
-        /// Exposure index.
-        exposure: u16,
-        /// Slot index within the exposure.
-        slot: u16,
-        /// Requested display time or trigger spacing, whichever is short.
-        period_ns: u64,
-        /// The projector's minimum.
-        min_ns: u32,
-    },
-    /// A pattern's slot starts before the previous pattern's display ended.
-    SlotsOverlap {
-        /// Exposure index.
-        exposure: u16,
-        /// Slot index within the exposure.
-        slot: u16,
-    },
-    /// A pattern's light (after latency, +-jitter) is not inside its
-    /// exposure (after latency, +-jitter) with the plan's margin.
-    PatternOutsideExposure {
-        /// Exposure index.
-        exposure: u16,
-        /// Slot index within the exposure.
-        slot: u16,
-        /// Head index.
-        head: u8,
-    },
-}
-
-impl core::fmt::Display for PlanError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        // The Debug form carries every offending value with its unit.
-        write!(f, "invalid scan plan: {self:?}")
-    }
-}
 
 /// A plan that passed [`ScanPlan::validate`] for one board; only validation
 /// makes one.
@@ -408,6 +275,8 @@ fn check_projector(plan: &ScanPlan, head: usize, hz: u32) -> Result<(), PlanErro
     // Absolute (from cycle start) trigger time and display end of the
     // previous pattern of this projector.
     let mut previous: Option<(u64, u64)> = None;
+    // Exposure index and trigger time of the cycle's first pattern.
+    let mut first: Option<(u16, u64)> = None;
     for (i, e) in exposures_of(plan, head) {
         // The camera integrates from its trigger's rise + latency (late by
         // up to the jitter) to its fall + latency (early by up to the
@@ -477,7 +346,33 @@ fn check_projector(plan: &ScanPlan, head: usize, hz: u32) -> Result<(), PlanErro
                     period_ns: plan.repeat_period_ns,
                 });
             }
+            first.get_or_insert((i, trigger));
             previous = Some((trigger, display_end));
+        }
+    }
+    // The next cycle's first pattern follows this cycle's last one. Implied
+    // today by `display >= min period` and patterns inside exposures inside
+    // the cycle; checked anyway so relaxing those cannot let a wrap through.
+    if let (Some((exposure, first)), Some((last, last_end)), true) =
+        (first, previous, plan.repeat_count > 1)
+    {
+        let period = Instant::at(plan.repeat_period_ns as u64, hz);
+        let next = Instant::at(first, hz).after(period);
+        if next.ns < last_end {
+            return Err(PlanError::SlotsOverlap { exposure, slot: 0 });
+        }
+        if !spaced(
+            next,
+            Instant::at(last, hz),
+            projector.min_pattern_period_ns,
+            hz,
+        ) {
+            return Err(PlanError::PatternPeriodTooShort {
+                exposure,
+                slot: 0,
+                period_ns: next.ns - last,
+                min_ns: projector.min_pattern_period_ns,
+            });
         }
     }
     Ok(())

@@ -25,6 +25,8 @@ enum BoardCommand {
     Info(InfoArgs),
     /// Upload a plan (JSON ScanPlan), run it, stream the board's events.
     RunPlan(RunPlanArgs),
+    /// Stop whatever the board is running (all trigger outputs to idle).
+    Abort(InfoArgs),
 }
 
 #[derive(clap::Args)]
@@ -93,6 +95,21 @@ fn run_command(args: Args) -> anyhow::Result<()> {
                 out,
                 "state           {:?} at tick {}",
                 status.state, status.now_tick
+            )?;
+            Ok(())
+        }),
+        BoardCommand::Abort(args) => with_board(&args.connection, |client, _info| {
+            let report = client.abort().context("aborting")?;
+            let status = client.status().context("reading the board status")?;
+            writeln!(
+                out,
+                "state           {:?} at tick {}",
+                status.state, status.now_tick
+            )?;
+            writeln!(
+                out,
+                "last scan       {} cycles planned, {} feedback edges checked",
+                report.cycles, report.expected
             )?;
             Ok(())
         }),
