@@ -1,6 +1,7 @@
-//! Fault injection on the simulated board's serial link: a byte-stream filter
-//! per direction (dropped bytes, flipped bits, a board that goes silent), and
-//! the device faults (a camera that misses a trigger) gathered in one plan.
+//! Fault injection, gathered in one [`FaultPlan`]: a byte-stream filter per
+//! direction of the serial link (dropped bytes, flipped bits, corrupted
+//! frames, a board that goes silent), a board that vanishes at a tick of its
+//! clock, and cameras that miss triggers.
 //!
 //! Positions are counted in bytes or frames of one direction's stream, so a
 //! fault lands at the same place on every run, however the OS splits the bytes
