@@ -1,6 +1,6 @@
 //! The simulated sync board: the firmware's own `board_core::Link` driving
 //! [`SimHardware`] on the virtual 170 MHz clock, with fault injection on its
-//! serial bytes. Sans-I/O: [`serve`] connects it to a pty or to channels.
+//! serial bytes. Sans-I/O: [`serve()`] connects it to a pty or to channels.
 //!
 //! ```text
 //! host bytes --to_board faults--> Link::receive --> Dispatcher --> SimHardware

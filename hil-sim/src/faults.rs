@@ -1,6 +1,7 @@
-//! Fault injection on the simulated board's serial link: a byte-stream filter
-//! per direction (dropped bytes, flipped bits, a board that goes silent), and
-//! the device faults (a camera that misses a trigger) gathered in one plan.
+//! Fault injection, gathered in one [`FaultPlan`]: a byte-stream filter per
+//! direction of the serial link (dropped bytes, flipped bits, corrupted
+//! frames, a board that goes silent), a board that vanishes at a tick of its
+//! clock, and cameras that miss triggers.
 //!
 //! Positions are counted in bytes or frames of one direction's stream, so a
 //! fault lands at the same place on every run, however the OS splits the bytes
@@ -22,6 +23,10 @@ pub struct StreamFaults {
     pub drop_bytes: BTreeSet<u64>,
     /// `(byte offset, bit 0..=7)` pairs to flip.
     pub flip_bits: BTreeSet<(u64, u8)>,
+    /// Frames (0-based, counted by their delimiters) whose first byte gets
+    /// its lowest bit flipped: corrupts exactly those frames whatever their
+    /// lengths.
+    pub flip_frames: BTreeSet<u64>,
     /// Pass this many bytes, then drop everything after (a board that stops
     /// answering, a cable pulled mid-stream).
     pub silent_after_bytes: Option<u64>,
@@ -95,6 +100,7 @@ pub struct ByteFilter {
     rng: Option<ChaCha8Rng>,
     bytes_in: u64,
     frames_in: u64,
+    at_frame_start: bool,
     silent: bool,
     dropped: u64,
     flipped: u64,
@@ -109,6 +115,7 @@ impl ByteFilter {
             rng,
             bytes_in: 0,
             frames_in: 0,
+            at_frame_start: true,
             silent: false,
             dropped: 0,
             flipped: 0,
@@ -133,6 +140,10 @@ impl ByteFilter {
             {
                 self.silent = true;
             }
+            // Frame of this byte, and whether it opens it (follows a delimiter).
+            let frame = self.frames_in;
+            let opens_frame = std::mem::replace(&mut self.at_frame_start, byte == FRAME_DELIMITER)
+                && byte != FRAME_DELIMITER;
             if byte == FRAME_DELIMITER {
                 self.frames_in += 1;
             }
@@ -149,6 +160,9 @@ impl ByteFilter {
             }
             if let Some(bit) = self.noise_flip() {
                 byte ^= 1 << bit;
+            }
+            if opens_frame && self.faults.flip_frames.contains(&frame) {
+                byte ^= 1;
             }
             if byte != original {
                 self.flipped += 1;
@@ -249,6 +263,20 @@ mod tests {
         };
         let stream = [1u8, 2, 0, 3, 0, 4, 5, 0, 6, 0];
         assert_eq!(run(faults, &[&stream]), vec![1, 2, 0, 3, 0]);
+    }
+
+    #[test]
+    fn flip_frames_hits_the_first_byte_of_exactly_those_frames() {
+        let faults = StreamFaults {
+            flip_frames: [0, 2].into(),
+            ..StreamFaults::default()
+        };
+        let stream = [4u8, 5, 0, 6, 7, 0, 8, 0, 0, 9, 0];
+        // Frame 0 = [4, 5], 1 = [6, 7], 2 = [8], then an empty one, 4 = [9].
+        assert_eq!(
+            run(faults, &[&stream[..4], &stream[4..]]),
+            vec![5, 5, 0, 6, 7, 0, 9, 0, 0, 9, 0]
+        );
     }
 
     #[test]

@@ -21,7 +21,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::WireError;
+use crate::error::{HardwareFault, WireError};
 use crate::limits::BoardLimits;
 use crate::plan::{Exposure, PlanHeader};
 
@@ -273,6 +273,13 @@ pub enum Event {
         level: Level,
         /// Captured board tick.
         measured_tick: u64,
+    },
+    /// The trigger hardware faulted; the scan stops (`ScanFinished` follows).
+    HardwareFault {
+        /// What the hardware reported.
+        fault: HardwareFault,
+        /// Board tick when it was seen.
+        tick: u64,
     },
     /// The scan ended (done, aborted or faulted) with these counters.
     ScanFinished {

@@ -184,9 +184,10 @@ impl Sequencer {
         }
     }
 
-    fn fault<H: TriggerHardware>(&mut self, hw: &mut H, _fault: HardwareFault) {
+    fn fault<H: TriggerHardware>(&mut self, hw: &mut H, fault: HardwareFault) {
         hw.stop();
         let now = hw.now_ticks();
+        self.push_event(Event::HardwareFault { fault, tick: now });
         self.finish(ScanState::Faulted, now);
     }
 

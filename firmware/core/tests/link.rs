@@ -456,6 +456,13 @@ fn a_hardware_fault_stops_the_scan() {
             ..
         })
     )));
+    assert!(events.iter().any(|f| matches!(
+        f,
+        BoardFrame::Event(Event::HardwareFault {
+            fault: HardwareFault::EdgeUnderrun { channel: 1 },
+            ..
+        })
+    )));
     assert_eq!(b.hw.stops, stops + 1);
 }
 

@@ -287,12 +287,17 @@ mod tests {
 
     #[test]
     fn abort_stops_a_running_scan() {
-        let (mut client, _board) = in_process();
-        client.upload_plan(&examples::dual_head_psp(2)).unwrap();
+        let (mut client, board) = in_process();
+        // A million cycles (80 min of board time): the simulation, however
+        // fast, is still running when the abort arrives.
+        let plan = examples::multiplexed_24_at_5khz(1_000_000);
+        client.upload_plan(&plan).unwrap();
         client.arm().unwrap();
         client.start(1_000_000).unwrap();
         let report = client.abort().unwrap();
-        assert_eq!(report.cycles, 2);
+        assert_eq!(report.cycles, 1_000_000);
         assert_eq!(client.status().unwrap().state, ScanState::Aborted);
+        let played = board.board().hardware().recorded().len();
+        assert!(played < 50 * 1_000_000, "{played} edges: stopped early");
     }
 }

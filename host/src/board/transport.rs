@@ -49,7 +49,7 @@ impl std::fmt::Debug for SerialTransport {
 impl SerialTransport {
     /// Opens `path` (8N1, no flow control, exclusive) at `baud`.
     pub fn open(path: &Path, baud: u32) -> Result<Self, LinkError> {
-        let port = serialport::new(path.to_string_lossy(), baud)
+        let mut port = serialport::new(path.to_string_lossy(), baud)
             .timeout(Duration::from_millis(10))
             .open()
             .map_err(|source| LinkError::Open {
@@ -58,6 +58,10 @@ impl SerialTransport {
             })?;
         // Stale bytes from an earlier session would only look like garbage.
         let _ = port.clear(serialport::ClearBuffer::Input);
+        // USB CDC-ACM firmware (embassy's `wait_connection`) takes DTR as
+        // "host connected". Linux raises it on open; asking again is cheap.
+        // A pty has no modem lines, so this is best-effort.
+        let _ = port.write_data_terminal_ready(true);
         Ok(Self { port })
     }
 }

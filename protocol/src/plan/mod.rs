@@ -144,34 +144,20 @@ pub struct ScanPlan {
 }
 
 /// A plan did not fit the fixed capacities (see [`crate::limits`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
 pub enum CapacityError {
     /// More than [`MAX_HEADS`] heads.
+    #[error("more than {MAX_HEADS} heads")]
     TooManyHeads,
     /// More than [`MAX_EXPOSURES`] exposures.
+    #[error("more than {MAX_EXPOSURES} exposures")]
     TooManyExposures,
     /// More than [`MAX_SLOTS_PER_EXPOSURE`] slots in one exposure.
+    #[error("more than {MAX_SLOTS_PER_EXPOSURE} slots in one exposure")]
     TooManySlotsInExposure,
     /// More than [`MAX_SLOTS_PER_CYCLE`] slots in the cycle.
+    #[error("more than {MAX_SLOTS_PER_CYCLE} slots in one cycle")]
     TooManySlotsInCycle,
-}
-
-impl core::fmt::Display for CapacityError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            CapacityError::TooManyHeads => write!(f, "more than {MAX_HEADS} heads"),
-            CapacityError::TooManyExposures => write!(f, "more than {MAX_EXPOSURES} exposures"),
-            CapacityError::TooManySlotsInExposure => {
-                write!(
-                    f,
-                    "more than {MAX_SLOTS_PER_EXPOSURE} slots in one exposure"
-                )
-            }
-            CapacityError::TooManySlotsInCycle => {
-                write!(f, "more than {MAX_SLOTS_PER_CYCLE} slots in one cycle")
-            }
-        }
-    }
 }
 
 /// A borrowed exposure of a stored plan with its slots.

@@ -206,7 +206,12 @@ fn ticks_us(ticks: u64, hz: u32) -> f64 {
     ticks as f64 * 1e6 / hz.max(1) as f64
 }
 
+/// One line per event. Events this version does not know in detail (the
+/// protocol may add some) are printed as they are.
 fn print_event(out: &mut impl Write, event: &Event, hz: u32) -> std::io::Result<()> {
+    if let Event::ScanFinished { state, .. } = event {
+        return writeln!(out, "event  scan finished: {state:?}");
+    }
     match *event {
         Event::StateChanged { state, tick } => {
             writeln!(out, "event  tick {tick:>14}  state -> {state:?}")
@@ -242,7 +247,7 @@ fn print_event(out: &mut impl Write, event: &Event, hz: u32) -> std::io::Result<
             out,
             "event  tick {measured_tick:>14}  feedback {ch} {level:?} UNEXPECTED"
         ),
-        Event::ScanFinished { state, .. } => writeln!(out, "event  scan finished: {state:?}"),
+        ref other => writeln!(out, "event  {other:?}"),
     }
 }
 
