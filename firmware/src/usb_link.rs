@@ -137,6 +137,9 @@ impl TxLog {
                 BoardFrame::Event(event @ Event::ScanFinished { .. }) => {
                     defmt::info!("{}", defmt::Debug2Format(&event))
                 }
+                BoardFrame::Event(event @ Event::HardwareFault { .. }) => {
+                    defmt::error!("{}", defmt::Debug2Format(&event))
+                }
                 BoardFrame::Event(event) => defmt::debug!("{}", defmt::Debug2Format(&event)),
                 BoardFrame::Response { .. } => {}
             }
