@@ -3,3 +3,4 @@
 //! (Being written: simulated board behind a pseudo-terminal, simulated
 //! devices, the digital twin.)
 #![warn(missing_docs)]
+pub mod twin;
