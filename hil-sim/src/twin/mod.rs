@@ -27,12 +27,14 @@ pub mod cache;
 pub mod device;
 pub mod error;
 pub mod geometry;
+pub mod io;
 pub mod medium;
 pub mod mesh;
 pub mod pattern;
 pub mod render;
 pub mod scatter;
 pub mod scene;
+pub mod scenes;
 pub mod sensor;
 pub mod truth;
 
