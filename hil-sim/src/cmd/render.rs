@@ -123,7 +123,7 @@ fn scene_objects(scene: &Scene) -> Vec<String> {
 fn camera_summary(name: &str, f: &Frame) -> serde_json::Value {
     let t = &f.truth;
     let d: Vec<f32> = t
-        .depth_m
+        .depth_m()
         .iter()
         .cloned()
         .filter(|d| d.is_finite())
@@ -134,9 +134,9 @@ fn camera_summary(name: &str, f: &Frame) -> serde_json::Value {
         "surface_px": d.len(),
         "depth_min_mm": d.iter().cloned().fold(f32::INFINITY, f32::min) * 1e3,
         "depth_max_mm": d.iter().cloned().fold(f32::NEG_INFINITY, f32::max) * 1e3,
-        "overlap_px": count(&t.overlap),
+        "overlap_px": count(&t.overlap()),
         "saturated_px": count(&t.saturated),
-        "shadow_px": (0..t.illum.len()).map(|p| count(&t.shadow_mask(p))).collect::<Vec<_>>(),
+        "shadow_px": (0..t.projectors()).map(|p| count(&t.shadow_mask(p))).collect::<Vec<_>>(),
     })
 }
 
@@ -148,7 +148,7 @@ fn write_camera(
     fringe: &Fringe,
 ) -> anyhow::Result<()> {
     let t = &fringes.truth;
-    let (w, h) = (t.width, t.height);
+    let (w, h) = (t.width(), t.height());
     let file = |suffix: &str| PathBuf::from(format!("{}_{suffix}", prefix.display()));
     let img = &fringes.image;
     write_png(
@@ -169,7 +169,7 @@ fn write_camera(
     )?;
     // Depth: near = bright, background black.
     let finite: Vec<f32> = t
-        .depth_m
+        .depth_m()
         .iter()
         .cloned()
         .filter(|d| d.is_finite())
@@ -180,7 +180,7 @@ fn write_camera(
             (a.min(d), b.max(d))
         });
     let depth_img: Vec<f32> = t
-        .depth_m
+        .depth_m()
         .iter()
         .map(|&d| {
             if d.is_finite() {
@@ -191,9 +191,9 @@ fn write_camera(
         })
         .collect();
     write_png(&file("depth.png"), w, h, 1, &depth_img, PngDepth::Sixteen)?;
-    write_npy(&file("depth_m.npy"), &[h as usize, w as usize], &t.depth_m)?;
+    write_npy(&file("depth_m.npy"), &[h as usize, w as usize], t.depth_m())?;
     let normals: Vec<f32> = t
-        .normal
+        .normal()
         .iter()
         .flat_map(|n| n.map(|c| if c.is_finite() { 0.5 + 0.5 * c } else { 0.0 }))
         .collect();
@@ -243,7 +243,7 @@ fn write_camera(
             let s = shadows.iter().any(|m| m[i]);
             [
                 s as u8 as f32,
-                t.overlap[i] as u8 as f32,
+                t.overlap()[i] as u8 as f32,
                 t.saturated[i] as u8 as f32,
             ]
         })

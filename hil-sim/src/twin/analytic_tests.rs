@@ -225,7 +225,7 @@ fn two_projectors_sum_to_the_single_projector_renders() {
         .unwrap()
         .truth;
     assert!(
-        truth.overlap.iter().filter(|&&o| o).count() > 1000,
+        truth.overlap().iter().filter(|&&o| o).count() > 1000,
         "the heads must overlap"
     );
 }

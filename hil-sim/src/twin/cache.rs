@@ -61,17 +61,52 @@ pub struct CameraGeometry {
     pub water_path_m: Vec<f32>,
     /// One view per projector of the rig.
     pub projectors: Vec<ProjectorView>,
+    /// Lit by two or more projectors (the aliased overlap of seed 000).
+    pub overlap: Vec<bool>,
 }
 
-/// Per-pixel result of the ray casting, before it is split into columns.
-struct PixelGeom {
-    depth: f32,
-    point: [f32; 3],
-    normal: [f32; 3],
-    object: u16,
-    ambient: [f32; 3],
-    water: f32,
-    proj: Vec<([f32; 2], [f32; 3], Illum)>,
+/// The cached columns of one image row (rows are computed in parallel,
+/// then concatenated; one allocation per row, not per pixel).
+struct RowGeom {
+    depth: Vec<f32>,
+    point: Vec<[f32; 3]>,
+    normal: Vec<[f32; 3]>,
+    object: Vec<u16>,
+    ambient: Vec<[f32; 3]>,
+    water: Vec<f32>,
+    proj: Vec<ProjectorView>,
+}
+
+impl RowGeom {
+    fn with_capacity(n: usize, projectors: usize) -> RowGeom {
+        RowGeom {
+            depth: Vec::with_capacity(n),
+            point: Vec::with_capacity(n),
+            normal: Vec::with_capacity(n),
+            object: Vec::with_capacity(n),
+            ambient: Vec::with_capacity(n),
+            water: Vec::with_capacity(n),
+            proj: (0..projectors)
+                .map(|_| ProjectorView::with_capacity(n))
+                .collect(),
+        }
+    }
+}
+
+impl ProjectorView {
+    fn with_capacity(n: usize) -> ProjectorView {
+        ProjectorView {
+            uv_px: Vec::with_capacity(n),
+            gain: Vec::with_capacity(n),
+            illum: Vec::with_capacity(n),
+        }
+    }
+
+    fn push(&mut self, (uv, gain, illum): ([f32; 2], [f32; 3], Illum)) {
+        self.uv_px.push(uv);
+        self.gain.push(gain);
+        self.illum.push(illum);
+    }
 }
 
 const NAN2: [f32; 2] = [f32::NAN; 2];
@@ -90,42 +125,52 @@ impl CameraGeometry {
             count: rig.cameras.len(),
         })?;
         let (w, h) = (cam.model.intrinsics.width, cam.model.intrinsics.height);
-        let pixels: Vec<PixelGeom> = (0..h)
-            .into_par_iter()
-            .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| pixel(scene, rig, camera, x as f64, y as f64))
-            .collect();
         let np = rig.projectors.len();
+        let rows: Vec<RowGeom> = (0..h)
+            .into_par_iter()
+            .map(|y| {
+                let mut row = RowGeom::with_capacity(w as usize, np);
+                for x in 0..w {
+                    pixel(scene, rig, camera, x as f64, y as f64, &mut row);
+                }
+                row
+            })
+            .collect();
+        let n = (w * h) as usize;
         let mut g = CameraGeometry {
             width: w,
             height: h,
-            depth_m: Vec::with_capacity(pixels.len()),
-            point_m: Vec::with_capacity(pixels.len()),
-            normal: Vec::with_capacity(pixels.len()),
-            object: Vec::with_capacity(pixels.len()),
-            ambient: Vec::with_capacity(pixels.len()),
-            water_path_m: Vec::with_capacity(pixels.len()),
-            projectors: (0..np)
-                .map(|_| ProjectorView {
-                    uv_px: Vec::with_capacity(pixels.len()),
-                    gain: Vec::with_capacity(pixels.len()),
-                    illum: Vec::with_capacity(pixels.len()),
-                })
-                .collect(),
+            depth_m: Vec::with_capacity(n),
+            point_m: Vec::with_capacity(n),
+            normal: Vec::with_capacity(n),
+            object: Vec::with_capacity(n),
+            ambient: Vec::with_capacity(n),
+            water_path_m: Vec::with_capacity(n),
+            projectors: (0..np).map(|_| ProjectorView::with_capacity(n)).collect(),
+            overlap: Vec::new(),
         };
-        for p in pixels {
-            g.depth_m.push(p.depth);
-            g.point_m.push(p.point);
-            g.normal.push(p.normal);
-            g.object.push(p.object);
-            g.ambient.push(p.ambient);
-            g.water_path_m.push(p.water);
-            for (view, (uv, gain, il)) in g.projectors.iter_mut().zip(p.proj) {
-                view.uv_px.push(uv);
-                view.gain.push(gain);
-                view.illum.push(il);
+        for r in rows {
+            g.depth_m.extend(r.depth);
+            g.point_m.extend(r.point);
+            g.normal.extend(r.normal);
+            g.object.extend(r.object);
+            g.ambient.extend(r.ambient);
+            g.water_path_m.extend(r.water);
+            for (view, rv) in g.projectors.iter_mut().zip(r.proj) {
+                view.uv_px.extend(rv.uv_px);
+                view.gain.extend(rv.gain);
+                view.illum.extend(rv.illum);
             }
         }
+        g.overlap = (0..n)
+            .map(|i| {
+                g.projectors
+                    .iter()
+                    .filter(|p| p.illum[i] == Illum::Lit)
+                    .count()
+                    >= 2
+            })
+            .collect();
         Ok(g)
     }
 }
@@ -146,24 +191,25 @@ fn camera_ray(rig: &Rig, camera: usize, x: f64, y: f64) -> Option<Ray> {
     }
 }
 
-fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, x: f64, y: f64) -> PixelGeom {
-    let np = rig.projectors.len();
+fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, x: f64, y: f64, row: &mut RowGeom) {
     let s = scene.scene();
     let direct = s.ambient_direct.map(|a| a as f32);
-    let miss = PixelGeom {
-        depth: f32::NAN,
-        point: NAN3,
-        normal: NAN3,
-        object: u16::MAX,
-        ambient: direct,
-        water: 0.0,
-        proj: vec![(NAN2, [0.0; 3], Illum::NoSurface); np],
+    let miss = |row: &mut RowGeom| {
+        row.depth.push(f32::NAN);
+        row.point.push(NAN3);
+        row.normal.push(NAN3);
+        row.object.push(u16::MAX);
+        row.ambient.push(direct);
+        row.water.push(0.0);
+        row.proj
+            .iter_mut()
+            .for_each(|p| p.push((NAN2, [0.0; 3], Illum::NoSurface)));
     };
     let Some(ray) = camera_ray(rig, camera, x, y) else {
-        return miss;
+        return miss(row);
     };
     let Some(hit) = scene.intersect(&ray, 0.0, f64::INFINITY) else {
-        return miss;
+        return miss(row);
     };
     let cam_model = &rig.cameras[camera].model;
     let p_cam = cam_model
@@ -177,10 +223,8 @@ fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, x: f64, y: f64) -> PixelG
     };
     let v = (view_to - hit.point_m).normalize();
     let ambient = [0, 1, 2].map(|b| albedo[b] * s.ambient_surface[b] as f32 + direct[b]);
-    let proj = rig
-        .projectors
-        .iter()
-        .map(|pr| {
+    for (pi, pr) in rig.projectors.iter().enumerate() {
+        let state = (|| {
             let model = &pr.model;
             let q = model
                 .world_from_device
@@ -239,15 +283,13 @@ fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, x: f64, y: f64) -> PixelG
                 (pr.led_power[b] * falloff * (albedo[b] as f64 * cos_i + spec) * trans[b]) as f32
             });
             (uv32, gain, Illum::Lit)
-        })
-        .collect();
-    PixelGeom {
-        depth: p_cam.z as f32,
-        point: f3(&hit.point_m),
-        normal: f3(&hit.normal),
-        object: hit.object as u16,
-        ambient,
-        water: water_c as f32,
-        proj,
+        })();
+        row.proj[pi].push(state);
     }
+    row.depth.push(p_cam.z as f32);
+    row.point.push(f3(&hit.point_m));
+    row.normal.push(f3(&hit.normal));
+    row.object.push(hit.object as u16);
+    row.ambient.push(ambient);
+    row.water.push(water_c as f32);
 }

@@ -86,17 +86,31 @@ impl Distortion {
         (xd, yd)
     }
 
-    /// Inverts `distort` by fixed-point iteration (converges for the mild
-    /// distortion of measurement lenses; 30 iterations reach ~1e-12).
+    /// Inverts `distort` by Newton's method on the 2x2 Jacobian
+    /// (quadratic convergence: 3-5 steps reach 1e-15 for measurement lenses).
     pub fn undistort(&self, xd: f64, yd: f64) -> (f64, f64) {
         if *self == Distortion::default() {
             return (xd, yd);
         }
         let (mut x, mut y) = (xd, yd);
-        for _ in 0..30 {
-            let (dx, dy) = self.distort(x, y);
-            x -= dx - xd;
-            y -= dy - yd;
+        for _ in 0..20 {
+            let (fx, fy) = self.distort(x, y);
+            let (ex, ey) = (fx - xd, fy - yd);
+            if ex.abs() + ey.abs() < 1e-15 {
+                break;
+            }
+            let r2 = x * x + y * y;
+            let rad = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+            let drad = self.k1 + r2 * (2.0 * self.k2 + 3.0 * r2 * self.k3);
+            let a = rad + 2.0 * x * x * drad + 2.0 * self.p1 * y + 6.0 * self.p2 * x;
+            let b = 2.0 * x * y * drad + 2.0 * self.p1 * x + 2.0 * self.p2 * y;
+            let d = rad + 2.0 * y * y * drad + 6.0 * self.p1 * y + 2.0 * self.p2 * x;
+            let det = a * d - b * b;
+            if det.abs() < 1e-12 {
+                break;
+            }
+            x -= (d * ex - b * ey) / det;
+            y -= (a * ey - b * ex) / det;
         }
         (x, y)
     }

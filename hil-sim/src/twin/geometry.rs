@@ -80,6 +80,14 @@ impl Shape {
             Shape::Mesh(mesh) => mesh.intersect(ray, t_min, t_max),
         }
     }
+
+    /// Whether anything of the shape lies on the ray with `t_min < t < t_max`.
+    pub fn occludes(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        match self {
+            Shape::Mesh(mesh) => mesh.occludes(ray, t_min, t_max),
+            _ => self.intersect(ray, t_min, t_max).is_some(),
+        }
+    }
 }
 
 fn rect_hit(ray: &Ray, hx: f64, hy: f64, t_min: f64, t_max: f64) -> Option<LocalHit> {

@@ -292,6 +292,28 @@ impl Mesh {
 
     /// Nearest hit with `t_min < t < t_max` (ray in the mesh frame).
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<LocalHit> {
+        let (t, k) = self.traverse(ray, t_min, t_max, false)?;
+        let tri = &self.tris[k];
+        let n = cross(tri.e1, tri.e2);
+        let mut normal = V3::new(n[0] as f64, n[1] as f64, n[2] as f64).normalize();
+        if normal.dot(&ray.dir) > 0.0 {
+            normal = -normal;
+        }
+        Some(LocalHit {
+            t_m: t as f64,
+            normal,
+        })
+    }
+
+    /// Whether any triangle lies on the ray with `t_min < t < t_max`
+    /// (stops at the first one: the shadow-ray query).
+    pub fn occludes(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        self.traverse(ray, t_min, t_max, true).is_some()
+    }
+
+    /// BVH walk, nearer child first; returns (t, triangle index) of the
+    /// nearest hit, or of the first hit found when `any` is set.
+    fn traverse(&self, ray: &Ray, t_min: f64, t_max: f64, any: bool) -> Option<(f32, usize)> {
         let o = [
             ray.origin.x as f32,
             ray.origin.y as f32,
@@ -319,6 +341,9 @@ impl Mesh {
                     if let Some(t) = tri_hit(&self.tris[k], o, d, tmin, best_t) {
                         best_t = t;
                         best = Some(k);
+                        if any {
+                            return Some((t, k));
+                        }
                     }
                 }
             } else {
@@ -346,17 +371,7 @@ impl Mesh {
             sp -= 1;
             ni = stack[sp] as usize;
         }
-        let k = best?;
-        let t = &self.tris[k];
-        let n = cross(t.e1, t.e2);
-        let mut normal = V3::new(n[0] as f64, n[1] as f64, n[2] as f64).normalize();
-        if normal.dot(&ray.dir) > 0.0 {
-            normal = -normal;
-        }
-        Some(LocalHit {
-            t_m: best_t as f64,
-            normal,
-        })
+        best.map(|k| (best_t, k))
     }
 }
 

@@ -3,6 +3,8 @@
 //! the sensor (seed 000 eq. 4-7: in the overlap a camera sees the sum of
 //! both projectors; seed 001 eq. 6: a long exposure sums its patterns).
 
+use std::sync::{Arc, Mutex};
+
 use rand::Rng;
 use rayon::prelude::*;
 
@@ -83,11 +85,18 @@ pub struct Frame {
 
 /// Cached geometry of one camera for one scene pose: build once, then
 /// render any number of pattern sequences cheaply.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct Renderer {
     rig: Rig,
-    geometry: CameraGeometry,
+    geometry: Arc<CameraGeometry>,
+    /// Defocused patterns by (displayed pattern, projector), so a sequence
+    /// shown again is not blurred again. Holding the source `Arc` keeps its
+    /// address from being reused while cached.
+    defocus_cache: Mutex<Vec<(Arc<Pattern>, usize, Arc<Pattern>)>>,
 }
+
+/// Defocused patterns kept per renderer (a 24-pattern sequence for two projectors fits).
+const DEFOCUS_CACHE: usize = 64;
 
 impl Renderer {
     /// Casts the camera's rays into `scene` frozen at `time_s` (expensive).
@@ -97,10 +106,11 @@ impl Renderer {
         camera: usize,
         time_s: f64,
     ) -> Result<Renderer, TwinError> {
-        let geometry = CameraGeometry::new(&scene.at(time_s), rig, camera)?;
+        let geometry = Arc::new(CameraGeometry::new(&scene.at(time_s), rig, camera)?);
         Ok(Renderer {
             rig: rig.clone(),
             geometry,
+            defocus_cache: Mutex::new(Vec::new()),
         })
     }
 
@@ -130,7 +140,7 @@ impl Renderer {
         let mut per_projector = Vec::with_capacity(timelines.len());
         for (pi, tl) in timelines.iter().enumerate() {
             let proj = &self.rig.projectors[pi];
-            let mut active: Vec<(Pattern, [f32; 3])> = Vec::new();
+            let mut active: Vec<(Arc<Pattern>, [f32; 3])> = Vec::new();
             let mut mean_drive = [0.0f64; 3];
             for s in &tl.shown {
                 if !(s.start_s.is_finite() && s.end_s.is_finite() && s.end_s >= s.start_s) {
@@ -156,7 +166,7 @@ impl Renderer {
                     for b in 0..3 {
                         mean_drive[b] += weight[b] as f64 * mean;
                     }
-                    active.push((s.pattern.defocused(proj.defocus_sigma_px), weight));
+                    active.push((self.defocused(&s.pattern, pi), weight));
                 }
             }
             let view = &g.projectors[pi];
@@ -210,6 +220,37 @@ impl Renderer {
         })
     }
 
+    /// The pattern as projector `pi`'s lens puts it on the scene (cached).
+    fn defocused(&self, pattern: &Arc<Pattern>, pi: usize) -> Arc<Pattern> {
+        let mut cache = self.defocus_cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, _, d)) = cache
+            .iter()
+            .find(|(p, i, _)| *i == pi && Arc::ptr_eq(p, pattern))
+        {
+            return d.clone();
+        }
+        let d = Arc::new(pattern.defocused(self.rig.projectors[pi].defocus_sigma_px));
+        if cache.len() >= DEFOCUS_CACHE {
+            cache.remove(0);
+        }
+        cache.push((pattern.clone(), pi, d.clone()));
+        d
+    }
+
+    /// Only the noisy sensor image and its saturation mask: the fast path
+    /// of a simulated camera.
+    pub fn image(
+        &self,
+        timelines: &[ProjectorTimeline],
+        exposure: Exposure,
+        sensor: &SensorModel,
+        noise_seed: u64,
+    ) -> Result<(Image, Vec<bool>), TwinError> {
+        sensor.validate()?;
+        let e = self.exposed(timelines, exposure)?;
+        Ok(sensor.expose(e.width, e.height, &e.total(), Some(noise_seed)))
+    }
+
     /// A full frame: exposures, sensor image with noise from `noise_seed`,
     /// clean images and truth.
     pub fn frame(
@@ -220,12 +261,12 @@ impl Renderer {
         noise_seed: u64,
     ) -> Result<Frame, TwinError> {
         let exposed = self.exposed(timelines, exposure)?;
-        finish(&self.geometry, exposed, sensor, noise_seed)
+        finish(self.geometry.clone(), exposed, sensor, noise_seed)
     }
 }
 
 fn finish(
-    g: &CameraGeometry,
+    geometry: Arc<CameraGeometry>,
     exposed: Exposed,
     sensor: &SensorModel,
     noise_seed: u64,
@@ -242,7 +283,10 @@ fn finish(
         image,
         clean,
         per_projector_clean,
-        truth: Truth::from_geometry(g, saturated),
+        truth: Truth {
+            geometry,
+            saturated,
+        },
         exposed,
     })
 }
@@ -282,5 +326,10 @@ pub fn render_exposure(
     } else {
         truth_renderer.exposed(timelines, exposure)?
     };
-    finish(&truth_renderer.geometry, exposed, sensor, rng.random())
+    finish(
+        truth_renderer.geometry.clone(),
+        exposed,
+        sensor,
+        rng.random(),
+    )
 }

@@ -305,11 +305,11 @@ impl PosedScene<'_> {
             dir: d / len,
         };
         let eps = 1e-7 * (1.0 + from_m.norm());
-        self.scene.objects.iter().zip(&self.poses).any(|(o, p)| {
-            o.shape
-                .intersect(&ray.to_local(p), eps, len - eps)
-                .is_some()
-        })
+        self.scene
+            .objects
+            .iter()
+            .zip(&self.poses)
+            .any(|(o, p)| o.shape.occludes(&ray.to_local(p), eps, len - eps))
     }
 }
 
