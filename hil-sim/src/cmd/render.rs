@@ -134,7 +134,7 @@ fn camera_summary(name: &str, f: &Frame) -> serde_json::Value {
         "surface_px": d.len(),
         "depth_min_mm": d.iter().cloned().fold(f32::INFINITY, f32::min) * 1e3,
         "depth_max_mm": d.iter().cloned().fold(f32::NEG_INFINITY, f32::max) * 1e3,
-        "overlap_px": count(&t.overlap()),
+        "overlap_px": count(t.overlap()),
         "saturated_px": count(&t.saturated),
         "shadow_px": (0..t.projectors()).map(|p| count(&t.shadow_mask(p))).collect::<Vec<_>>(),
     })

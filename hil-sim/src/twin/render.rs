@@ -92,8 +92,11 @@ pub struct Renderer {
     /// Defocused patterns by (displayed pattern, projector), so a sequence
     /// shown again is not blurred again. Holding the source `Arc` keeps its
     /// address from being reused while cached.
-    defocus_cache: Mutex<Vec<(Arc<Pattern>, usize, Arc<Pattern>)>>,
+    defocus_cache: Mutex<Vec<DefocusEntry>>,
 }
+
+/// (shown pattern, projector index, its defocused image).
+type DefocusEntry = (Arc<Pattern>, usize, Arc<Pattern>);
 
 /// Defocused patterns kept per renderer (a 24-pattern sequence for two projectors fits).
 const DEFOCUS_CACHE: usize = 64;
