@@ -222,7 +222,13 @@ fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, x: f64, y: f64, row: &mut
         Medium::Water(_) => (hit.t_m, ray.origin),
     };
     let v = (view_to - hit.point_m).normalize();
-    let ambient = [0, 1, 2].map(|b| albedo[b] * s.ambient_surface[b] as f32 + direct[b]);
+    // Surface ambient reaches the camera through the camera-side water path.
+    let cam_trans = match &rig.medium {
+        Medium::Air => [1.0; 3],
+        Medium::Water(wtr) => wtr.transmittance(water_c),
+    };
+    let ambient =
+        [0, 1, 2].map(|b| albedo[b] * (s.ambient_surface[b] * cam_trans[b]) as f32 + direct[b]);
     for (pi, pr) in rig.projectors.iter().enumerate() {
         let state = (|| {
             let model = &pr.model;

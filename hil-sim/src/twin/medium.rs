@@ -49,10 +49,10 @@ impl Water {
     /// The preset of a turbidity level with ports `port_distance_m` in front of the devices.
     pub fn preset(level: Turbidity, port_distance_m: f64) -> Water {
         let (c, fwd, veil, bb) = match level {
-            Turbidity::T1 => (0.6, 2.0, 0.02, 0.6),
-            Turbidity::T2 => (1.2, 4.0, 0.05, 1.0),
-            Turbidity::T3 => (2.2, 7.0, 0.10, 1.6),
-            Turbidity::T4 => (3.5, 11.0, 0.18, 2.4),
+            Turbidity::T1 => (0.6, 2.0, 0.003, 0.6),
+            Turbidity::T2 => (1.2, 4.0, 0.008, 1.0),
+            Turbidity::T3 => (2.2, 7.0, 0.015, 1.6),
+            Turbidity::T4 => (3.5, 11.0, 0.025, 2.4),
         };
         // Milky water absorbs red a little more than green and blue.
         Water {

@@ -24,6 +24,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod cache;
+pub mod dataset;
 pub mod device;
 pub mod error;
 pub mod geometry;
@@ -31,6 +32,7 @@ pub mod io;
 pub mod medium;
 pub mod mesh;
 pub mod pattern;
+pub mod random_scene;
 pub mod render;
 pub mod scatter;
 pub mod scene;
