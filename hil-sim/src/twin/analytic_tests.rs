@@ -408,3 +408,54 @@ fn phase_noise_meets_the_cramer_rao_bound() {
     // The noise-free chain returns the true absolute phase (wrapped).
     assert!(sys < 0.02, "systematic phase error {sys} rad");
 }
+
+#[test]
+fn checkerboard_corners_land_where_the_truth_says() {
+    let detail = scenes::Detail {
+        camera: (320, 240),
+        projector: (320, 200),
+    };
+    let (scene, rig) = scenes::built_in("checkerboard", &detail).unwrap();
+    let board = scenes::CHECKERBOARD;
+    let pose = scene.objects[0].pose;
+    let corners = board.corners_px(&pose, &rig.cameras[0].model);
+    assert_eq!(corners.len(), 48);
+    let r = Renderer::new(&scene, &rig, 0, 0.0).unwrap();
+    let k = rig.projectors[0].model.intrinsics;
+    let flood = vec![ProjectorTimeline::single(
+        Arc::new(Pattern::flat(k.width, k.height, 1.0)),
+        0.0,
+        1e-3,
+    )];
+    let img = r
+        .frame(
+            &flood,
+            Exposure {
+                start_s: 0.0,
+                end_s: 1e-3,
+            },
+            &SensorModel::ideal(),
+            0,
+        )
+        .unwrap()
+        .clean;
+    let at = |x: f64, y: f64| img.at(x.round() as u32, y.round() as u32, 0);
+    let mut checked = 0;
+    for c in corners.iter().flatten() {
+        let [x, y] = *c;
+        if x < 5.0 || y < 5.0 || x > 314.0 || y > 234.0 {
+            continue;
+        }
+        // Diagonal neighbours match, adjacent ones differ strongly (dark vs light).
+        let (a, b, c2, d) = (
+            at(x - 3.0, y - 3.0),
+            at(x + 3.0, y + 3.0),
+            at(x + 3.0, y - 3.0),
+            at(x - 3.0, y + 3.0),
+        );
+        let contrast = (a + b - c2 - d).abs() / (a + b + c2 + d);
+        assert!(contrast > 0.5, "corner at {x:.1},{y:.1}: {a} {b} {c2} {d}");
+        checked += 1;
+    }
+    assert!(checked >= 40, "only {checked} corners in view");
+}

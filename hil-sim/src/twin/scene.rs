@@ -107,6 +107,20 @@ impl Checkerboard {
         out
     }
 
+    /// Pixel positions (with lens distortion) of the inner corners when the
+    /// board sits at `pose`, in [`Self::inner_corners_local`] order; None
+    /// for corners behind the camera. The truth the calibration tests use.
+    pub fn corners_px(
+        &self,
+        pose: &Pose,
+        camera: &super::device::Pinhole,
+    ) -> Vec<Option<[f64; 2]>> {
+        self.inner_corners_local()
+            .iter()
+            .map(|c| camera.project(&pose.transform_point(&Point3::from(*c)).coords))
+            .collect()
+    }
+
     /// The board as a scene object at `pose`, with a one-square white margin.
     pub fn object(&self, pose: Pose) -> Object {
         Object::new(
