@@ -459,3 +459,82 @@ fn checkerboard_corners_land_where_the_truth_says() {
     }
     assert!(checked >= 40, "only {checked} corners in view");
 }
+
+/// Renders a flood-lit ball moving at `speed_m_s` along x during a 10 ms
+/// exposure (centre at x = 0 at mid-exposure).
+fn moving_ball(speed_m_s: f64) -> (Frame, Rig) {
+    let mut ball = Object::new(
+        "ball",
+        Shape::Sphere { radius_m: 0.03 },
+        white(),
+        Pose::translation(-speed_m_s * 0.005, 0.0, 0.4),
+    );
+    ball.motion = Motion::Ballistic {
+        velocity_m_s: V3::new(speed_m_s, 0.0, 0.0),
+        accel_m_s2: V3::zeros(),
+    };
+    let scene = Scene {
+        objects: vec![ball],
+        ..Default::default()
+    };
+    let rig = Rig {
+        cameras: vec![camera(128, 96, Distortion::default())],
+        projectors: vec![projector(0.1, 160, 120)],
+        medium: Medium::Air,
+    };
+    let k = rig.projectors[0].model.intrinsics;
+    let flood = vec![ProjectorTimeline::single(
+        Arc::new(Pattern::flat(k.width, k.height, 1.0)),
+        0.0,
+        0.01,
+    )];
+    let sensor = SensorModel {
+        electrons_per_unit: 2e5,
+        ..SensorModel::ideal()
+    };
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(1);
+    let frame = render_exposure(
+        &scene,
+        &rig,
+        0,
+        &flood,
+        Exposure {
+            start_s: 0.0,
+            end_s: 0.01,
+        },
+        &sensor,
+        &mut rng,
+    )
+    .unwrap();
+    (frame, rig)
+}
+
+#[test]
+fn moving_object_truth_is_at_mid_exposure_and_image_is_smeared() {
+    // 2 m/s for 10 ms: 20 mm of travel, about 7 px at this scale.
+    let (moving, rig) = moving_ball(2.0);
+    let (still, _) = moving_ball(0.0);
+    let [cx, cy] = rig.cameras[0]
+        .model
+        .project(&V3::new(0.0, 0.0, 0.4))
+        .unwrap();
+    let i = (cy.round() as usize) * 128 + cx.round() as usize;
+    assert!(
+        (moving.truth.depth_m()[i] as f64 - 0.37).abs() < 2e-4,
+        "truth is the mid-exposure pose"
+    );
+    let row = cy.round() as u32;
+    let partial = |f: &Frame| {
+        let peak = (0..128)
+            .map(|x| f.clean.at(x, row, 0))
+            .fold(0.0f32, f32::max);
+        (0..128)
+            .filter(|&x| (0.05 * peak..0.5 * peak).contains(&f.clean.at(x, row, 0)))
+            .count()
+    };
+    let (pm, ps) = (partial(&moving), partial(&still));
+    assert!(
+        pm >= ps + 6,
+        "motion blur must widen the edges: {pm} vs {ps} partial pixels"
+    );
+}
