@@ -159,7 +159,8 @@ impl Pattern {
         }
         let u = u.clamp(0.0, (w - 1) as f32);
         let v = v.clamp(0.0, (h - 1) as f32);
-        let (x0, y0) = (u.floor() as i32, v.floor() as i32);
+        // Clamped to >= 0 above, so truncation is floor (and avoids a libm call).
+        let (x0, y0) = (u as i32, v as i32);
         let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
         let (fx, fy) = (u - x0 as f32, v - y0 as f32);
         let at = |x: i32, y: i32| self.values[(y * w + x) as usize];

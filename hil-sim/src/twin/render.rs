@@ -175,21 +175,25 @@ impl Renderer {
             let view = &g.projectors[pi];
             let mut img = vec![[0.0f32; 3]; w * h];
             img.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-                for (x, out) in row.iter_mut().enumerate() {
-                    let i = y * w + x;
-                    let gain = view.gain[i];
-                    if gain == [0.0; 3] {
-                        continue;
-                    }
-                    let [u, v] = view.uv_px[i];
-                    let mut acc = [0.0f32; 3];
-                    for (pat, wgt) in &active {
-                        let s = pat.sample(u, v);
+                let gains = &view.gain[y * w..(y + 1) * w];
+                let uvs = &view.uv_px[y * w..(y + 1) * w];
+                // Pattern-major within a row: one pattern's few DMD lines stay
+                // in cache while the row samples them (24 patterns of 1 MP do not fit).
+                for (pat, wgt) in &active {
+                    for ((out, gain), [u, v]) in row.iter_mut().zip(gains).zip(uvs) {
+                        if *gain == [0.0; 3] {
+                            continue;
+                        }
+                        let s = pat.sample(*u, *v);
                         for b in 0..3 {
-                            acc[b] += wgt[b] * s;
+                            out[b] += wgt[b] * s;
                         }
                     }
-                    *out = [gain[0] * acc[0], gain[1] * acc[1], gain[2] * acc[2]];
+                }
+                for (out, gain) in row.iter_mut().zip(gains) {
+                    for b in 0..3 {
+                        out[b] *= gain[b];
+                    }
                 }
             });
             if let Medium::Water(water) = &self.rig.medium {

@@ -218,7 +218,8 @@ impl SensorModel {
                             v = v.powf(1.0 / self.gamma);
                         }
                         if levels > 0.0 {
-                            v = (v * levels).round() / levels;
+                            // v >= 0 here: add-half-and-truncate is round (no libm call).
+                            v = ((v * levels + 0.5) as u32) as f64 / levels;
                         }
                         row[x * nc + c] = v as f32;
                     }
