@@ -37,7 +37,7 @@ fn measure<T>(name: &str, iters: usize, mut f: impl FnMut() -> T) {
     let wall_ms = w0.elapsed().as_secs_f64() * 1e3 / iters as f64;
     let cpu_ms = (cpu_s() - c0) * 1e3 / iters as f64;
     println!(
-        "| {name:<58} | {wall_ms:>9.1} | {cpu_ms:>9.1} | {:>15.1} |",
+        "| {name:<58} | {wall_ms:>9.1} | {cpu_ms:>9.1} | {:>16.1} |",
         cpu_ms / 2.0
     );
 }
@@ -63,7 +63,7 @@ fn main() {
     let (scene, rig) = built_in("bumpy-mesh", &DETAIL).expect("built-in scene");
     println!("1280x800 camera (1.02 MP), bumpy-mesh scene (100,352 triangles + wall), 1280x800 DMD; rayon threads: {}", rayon::current_num_threads());
     println!(
-        "| {:<58} | {:>9} | {:>9} | {:>15} |",
+        "| {:<58} | {:>9} | {:>9} | {:>16} |",
         "stage", "wall ms", "CPU ms", "CPU ms / 2 cores"
     );
     println!(
@@ -71,7 +71,7 @@ fn main() {
         "-".repeat(60),
         "-".repeat(11),
         "-".repeat(11),
-        "-".repeat(17)
+        "-".repeat(18)
     );
     measure(
         "geometry set-up: rays, hits, shadows (once per pose)",

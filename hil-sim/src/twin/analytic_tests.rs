@@ -538,3 +538,96 @@ fn moving_object_truth_is_at_mid_exposure_and_image_is_smeared() {
         "motion blur must widen the edges: {pm} vs {ps} partial pixels"
     );
 }
+
+#[test]
+fn colour_crosstalk_follows_the_sensor_matrix() {
+    let (scene, _) = tilted_plane();
+    let rig = Rig {
+        cameras: vec![camera(64, 48, Distortion::default())],
+        projectors: vec![projector(0.1, 80, 60)],
+        medium: Medium::Air,
+    };
+    let r = Renderer::new(&scene, &rig, 0, 0.0).unwrap();
+    let red_only = vec![ProjectorTimeline {
+        shown: vec![Shown {
+            pattern: Arc::new(Pattern::flat(80, 60, 1.0)),
+            start_s: 0.0,
+            end_s: 1e-3,
+            led: [1.0, 0.0, 0.0],
+        }],
+    }];
+    let m = [[0.90, 0.12, 0.03], [0.10, 0.85, 0.10], [0.03, 0.15, 0.88]];
+    let sensor = SensorModel {
+        channels: Channels::Rgb(m),
+        electrons_per_unit: 2e6,
+        ..SensorModel::ideal()
+    };
+    let img = r
+        .frame(
+            &red_only,
+            Exposure {
+                start_s: 0.0,
+                end_s: 1e-3,
+            },
+            &sensor,
+            0,
+        )
+        .unwrap()
+        .clean;
+    let i = (24 * 64 + 32) * 3;
+    let (red, green, blue) = (
+        img.data[i] as f64,
+        img.data[i + 1] as f64,
+        img.data[i + 2] as f64,
+    );
+    assert!(red > 0.05);
+    assert!((green / red - 0.10 / 0.90).abs() < 1e-5 && (blue / red - 0.03 / 0.90).abs() < 1e-5);
+}
+
+#[test]
+fn metal_part_spans_50_to_1_and_saturates_on_highlights() {
+    let detail = scenes::Detail {
+        camera: (160, 120),
+        projector: (160, 100),
+    };
+    let (scene, rig) = scenes::built_in("metal-part", &detail).unwrap();
+    let r = Renderer::new(&scene, &rig, 0, 0.0).unwrap();
+    let flood = vec![ProjectorTimeline::single(
+        Arc::new(Pattern::flat(160, 100, 1.0)),
+        0.0,
+        1e-3,
+    )];
+    let frame = r
+        .frame(
+            &flood,
+            Exposure {
+                start_s: 0.0,
+                end_s: 1e-3,
+            },
+            &SensorModel::mono12(),
+            0,
+        )
+        .unwrap();
+    let sat = frame.truth.saturated.iter().filter(|&&s| s).count();
+    assert!(sat > 0, "specular highlights must saturate");
+    assert!(sat < 160 * 120 / 4, "but not the whole part ({sat} px)");
+    let albedos: Vec<f32> = (0..160 * 120)
+        .filter(|&i| frame.truth.object()[i] == 0)
+        .map(|i| match &scene.objects[0].material.albedo {
+            Albedo::Stripes { .. } => {
+                let p = frame.truth.point_m()[i];
+                let local = scene.objects[0].pose.inverse_transform_point(&Point3::new(
+                    p[0] as f64,
+                    p[1] as f64,
+                    p[2] as f64,
+                ));
+                scene.objects[0].material.albedo.at(&local.coords)[0]
+            }
+            _ => unreachable!("metal part uses stripes"),
+        })
+        .collect();
+    let (lo, hi) = albedos
+        .iter()
+        .fold((f32::MAX, 0.0f32), |(a, b), &x| (a.min(x), b.max(x)));
+    assert!(hi / lo >= 49.9, "reflectivity range {}:1", hi / lo);
+}

@@ -55,7 +55,7 @@ pub struct CameraGeometry {
     pub normal: Vec<[f32; 3]>,
     /// Object index (u16::MAX: no surface).
     pub object: Vec<u16>,
-    /// Ambient signal per second per band: albedo x surface ambient + direct ambient.
+    /// Ambient signal per second per band: albedo x (scene + material ambient) + direct ambient.
     pub ambient: Vec<[f32; 3]>,
     /// Length of the camera-side water path, metres (0 in air).
     pub water_path_m: Vec<f32>,
@@ -227,8 +227,10 @@ fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, x: f64, y: f64, row: &mut
         Medium::Air => [1.0; 3],
         Medium::Water(wtr) => wtr.transmittance(water_c),
     };
-    let ambient =
-        [0, 1, 2].map(|b| albedo[b] * (s.ambient_surface[b] * cam_trans[b]) as f32 + direct[b]);
+    let ambient = [0, 1, 2].map(|b| {
+        let on_surface = s.ambient_surface[b] + material.ambient[b] as f64;
+        albedo[b] * (on_surface * cam_trans[b]) as f32 + direct[b]
+    });
     for (pi, pr) in rig.projectors.iter().enumerate() {
         let state = (|| {
             let model = &pr.model;

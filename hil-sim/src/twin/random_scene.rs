@@ -90,6 +90,7 @@ pub fn random_scene(
                 0.0
             },
             shininess: rng.random_range(40.0..400.0),
+            ambient: [0.0; 3],
         };
         objects.push(Object::new(&format!("random-{i}"), shape, material, pose));
     }

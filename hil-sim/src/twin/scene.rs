@@ -144,6 +144,9 @@ pub struct Material {
     pub specular: f32,
     /// Blinn-Phong exponent of the lobe.
     pub shininess: f32,
+    /// Flat extra irradiance on this surface per band, twin units/s
+    /// (light from neighbouring surfaces, seed 003's per-patch Li).
+    pub ambient: [f32; 3],
 }
 
 impl Material {
@@ -153,6 +156,7 @@ impl Material {
             albedo,
             specular: 0.0,
             shininess: 1.0,
+            ambient: [0.0; 3],
         }
     }
 }

@@ -301,6 +301,8 @@ fn metal_part(d: &Detail) -> Result<(Scene, Rig), TwinError> {
         },
         specular: 4.0,
         shininess: 400.0,
+        // Interreflections inside the machined part.
+        ambient: [0.02; 3],
     };
     let mesh = Mesh::height_field(161, 161, 0.2, 0.2, |x, y| {
         0.03 * (1.0 - (x * x + y * y) / 0.02).max(0.0).sqrt()
@@ -319,6 +321,7 @@ fn metal_part(d: &Detail) -> Result<(Scene, Rig), TwinError> {
             albedo: Albedo::Constant([0.3; 3]),
             specular: 20.0,
             shininess: 200.0,
+            ambient: [0.0; 3],
         },
         Pose::translation(0.06, -0.05, 0.47),
     );
