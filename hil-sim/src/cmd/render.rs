@@ -15,9 +15,9 @@ use hil_sim::twin::{
 use rand::SeedableRng;
 
 /// Options of `hil-sim render`.
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct Args {
-    /// Built-in scene name (see `hil-sim scenes`).
+    /// Built-in scene name (see `hil-sim scenes`), or `all` for every scene, one folder each.
     #[arg(long)]
     scene: String,
     /// Output folder (created).
@@ -38,6 +38,9 @@ pub struct Args {
     /// Put the rig under water at this turbidity (flat ports 30 mm in front of each device).
     #[arg(long)]
     turbidity: Option<Turbidity>,
+    /// Use the 8-bit colour sensor (with channel crosstalk) instead of the 12-bit mono one.
+    #[arg(long)]
+    colour: bool,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -45,6 +48,21 @@ pub struct Args {
 
 /// Renders the scene and writes the pictures.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.scene == "all" {
+        for b in hil_sim::twin::scenes::BUILT_IN {
+            let out = args.out.join(b.name);
+            run_one(&Args {
+                scene: b.name.to_string(),
+                out,
+                ..args
+            })?;
+        }
+        return Ok(());
+    }
+    run_one(&args)
+}
+
+fn run_one(args: &Args) -> anyhow::Result<()> {
     let detail = Detail {
         camera: (args.width, args.height),
         ..Detail::default()
@@ -58,7 +76,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         start_s: 0.0,
         end_s: args.exposure_us * 1e-6,
     };
-    let sensor = SensorModel::mono12();
+    let sensor = if args.colour {
+        SensorModel::colour8()
+    } else {
+        SensorModel::mono12()
+    };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
     let fringe = Fringe {
         period_px: args.period_px,
