@@ -331,10 +331,12 @@ impl Mesh {
         let mut best_t = t_max as f32;
         let mut best: Option<usize> = None;
         let tmin = t_min as f32;
-        let mut stack = [0u32; 64];
+        // Far children wait with their entry distance: once a nearer hit is
+        // found they are dropped without touching their node.
+        let mut stack = [(0u32, 0.0f32); 64];
         let mut sp = 0usize;
         let mut ni = 0usize;
-        loop {
+        'walk: loop {
             let node = &self.nodes[ni];
             if node.count > 0 {
                 for k in node.first as usize..(node.first + node.count) as usize {
@@ -358,18 +360,22 @@ impl Mesh {
                 };
                 if tn.is_finite() {
                     if tf.is_finite() && sp < stack.len() {
-                        stack[sp] = far as u32;
+                        stack[sp] = (far as u32, tf);
                         sp += 1;
                     }
                     ni = near;
                     continue;
                 }
             }
-            if sp == 0 {
-                break;
+            while sp > 0 {
+                sp -= 1;
+                let (next, t_entry) = stack[sp];
+                if t_entry < best_t {
+                    ni = next as usize;
+                    continue 'walk;
+                }
             }
-            sp -= 1;
-            ni = stack[sp] as usize;
+            break;
         }
         best.map(|k| (best_t, k))
     }
