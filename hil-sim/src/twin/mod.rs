@@ -56,3 +56,7 @@ pub use truth::Truth;
 
 #[cfg(test)]
 mod analytic_tests;
+#[cfg(test)]
+mod behaviour_tests;
+#[cfg(test)]
+mod test_rig;
