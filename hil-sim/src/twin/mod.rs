@@ -18,6 +18,28 @@
 //! diffuser at the projector's reference distance, facing it, gives
 //! `led_power` units of signal per second (the 1/pi of a Lambertian BRDF is
 //! folded into that unit).
+//!
+//! A simulated camera renders what the projectors actually showed while
+//! its shutter was open:
+//!
+//! ```
+//! use std::sync::Arc;
+//! use hil_sim::twin::scenes::{built_in, Detail};
+//! use hil_sim::twin::{Exposure, Pattern, ProjectorTimeline, Renderer, SensorModel};
+//!
+//! let detail = Detail { camera: (32, 24), projector: (40, 25) };
+//! let (scene, rig) = built_in("plane", &detail)?;
+//! let renderer = Renderer::new(&scene, &rig, 0, 0.0)?; // ray casting, once per pose
+//! let white = Arc::new(Pattern::flat(40, 25, 1.0));
+//! let shown = [ProjectorTimeline::single(white, 0.0, 1e-3)]; // on for 1 ms
+//! let frame = renderer.frame(&shown, Exposure { start_s: 0.0, end_s: 2e-3 }, &SensorModel::mono12(), 42)?;
+//! assert_eq!((frame.image.width, frame.image.height), (32, 24));
+//! // The shutter stayed open 1 ms after the pattern went dark: the
+//! // projector's light is exactly that of a 1 ms exposure.
+//! let one_ms = renderer.exposed(&shown, Exposure { start_s: 0.0, end_s: 1e-3 })?;
+//! assert_eq!(frame.exposed.per_projector, one_ms.per_projector);
+//! # Ok::<(), hil_sim::twin::TwinError>(())
+//! ```
 
 // Band and axis loops (0..3) index several small arrays at once; zipped
 // iterators would hide which component goes with which.
