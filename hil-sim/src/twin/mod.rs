@@ -62,6 +62,7 @@ pub mod scene;
 pub mod scenes;
 pub mod sensor;
 pub mod truth;
+pub mod twin_rig;
 
 pub use cache::{CameraGeometry, Illum};
 pub use device::{look_at, Camera, Distortion, Intrinsics, Pinhole, Projector, Rig};
@@ -75,6 +76,7 @@ pub use render::{render_exposure, Exposed, Frame, Renderer};
 pub use scene::{Albedo, Checkerboard, Material, Motion, Object, Scene, Texture};
 pub use sensor::{Channels, Image, SensorModel};
 pub use truth::Truth;
+pub use twin_rig::TwinRig;
 
 #[cfg(test)]
 mod analytic_tests;
