@@ -57,8 +57,11 @@ fn fringe(period_px: f64, angle_rad: f64, depth: BitDepth) -> Arc<Pattern> {
 }
 
 fn main() {
-    if std::env::args().any(|a| a == "--list") {
-        return; // `cargo test --benches` lists benches; nothing to list here.
+    // `cargo bench` passes --bench; `cargo test --benches` does not, and
+    // should not spend a minute here.
+    if !std::env::args().any(|a| a == "--bench") {
+        println!("render_table: run with `cargo bench -p hil-sim --bench render_table`");
+        return;
     }
     let (scene, rig) = built_in("bumpy-mesh", &DETAIL).expect("built-in scene");
     println!("1280x800 camera (1.02 MP), bumpy-mesh scene (100,352 triangles + wall), 1280x800 DMD; rayon threads: {}", rayon::current_num_threads());
