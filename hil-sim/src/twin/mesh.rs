@@ -13,6 +13,9 @@ use super::geometry::{LocalHit, Ray, V3};
 
 const BINS: usize = 12;
 const LEAF_MAX: usize = 4;
+/// Deepest inner node: traversal keeps at most one deferred child per
+/// level, so its fixed stack of this size can never overflow.
+const MAX_DEPTH: usize = 60;
 
 #[derive(Clone, Copy, Debug)]
 struct Aabb {
@@ -239,8 +242,8 @@ impl Mesh {
             first: 0,
             count: n as u32,
         });
-        let mut stack = vec![0usize];
-        while let Some(ni) = stack.pop() {
+        let mut stack = vec![(0usize, 0usize)];
+        while let Some((ni, depth)) = stack.pop() {
             let (first, count) = (self.nodes[ni].first as usize, self.nodes[ni].count as usize);
             let items = &mut order[first..first + count];
             let mut nb = Aabb::EMPTY;
@@ -250,7 +253,7 @@ impl Mesh {
                 cb.grow(cents[i as usize]);
             }
             self.nodes[ni].bounds = nb;
-            if count <= LEAF_MAX {
+            if count <= LEAF_MAX || depth >= MAX_DEPTH {
                 continue;
             }
             let Some((axis, split)) = best_split(items, &bounds, &cents, &cb, nb.area(), count)
@@ -284,8 +287,8 @@ impl Mesh {
             });
             self.nodes[ni].first = left as u32;
             self.nodes[ni].count = 0;
-            stack.push(left);
-            stack.push(left + 1);
+            stack.push((left, depth + 1));
+            stack.push((left + 1, depth + 1));
         }
         self.tris = order.iter().map(|&i| self.tris[i as usize]).collect();
     }
@@ -333,7 +336,7 @@ impl Mesh {
         let tmin = t_min as f32;
         // Far children wait with their entry distance: once a nearer hit is
         // found they are dropped without touching their node.
-        let mut stack = [(0u32, 0.0f32); 64];
+        let mut stack = [(0u32, 0.0f32); MAX_DEPTH + 1];
         let mut sp = 0usize;
         let mut ni = 0usize;
         'walk: loop {
@@ -359,7 +362,7 @@ impl Mesh {
                     (b, tb, a, ta)
                 };
                 if tn.is_finite() {
-                    if tf.is_finite() && sp < stack.len() {
+                    if tf.is_finite() {
                         stack[sp] = (far as u32, tf);
                         sp += 1;
                     }
@@ -390,13 +393,34 @@ fn slab(b: &Aabb, o: [f32; 3], inv: [f32; 3], t_max: f32) -> f32 {
     for a in 0..3 {
         let ta = (b.min[a] - o[a]) * inv[a];
         let tb = (b.max[a] - o[a]) * inv[a];
-        t0 = t0.max(ta.min(tb));
-        t1 = t1.min(ta.max(tb));
+        t0 = fmax(t0, fmin(ta, tb));
+        t1 = fmin(t1, fmax(ta, tb));
     }
     if t0 <= t1 {
         t0
     } else {
         f32::INFINITY
+    }
+}
+
+/// min without f32::min's NaN handling (one `minss`); the slab inputs are
+/// never NaN because `inv` has no infinities.
+#[inline(always)]
+fn fmin(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// max counterpart of [`fmin`].
+#[inline(always)]
+fn fmax(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
     }
 }
 
