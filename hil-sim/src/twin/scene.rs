@@ -1,6 +1,6 @@
 //! Scenes: objects (shape + material + pose + motion) and the ambient light.
 
-use nalgebra::{Point3, Translation3, Unit, UnitQuaternion};
+use nalgebra::{Matrix3, Point3, Translation3, Unit, UnitQuaternion};
 use std::sync::Arc;
 
 use super::geometry::{LocalHit, Pose, Ray, Shape, V3};
@@ -265,6 +265,19 @@ pub struct Scene {
 pub struct PosedScene<'a> {
     scene: &'a Scene,
     poses: Vec<Pose>,
+    /// Per object (R^T, t) of its pose: a matrix product is cheaper than a
+    /// quaternion rotation, and every ray is moved into every object's frame.
+    local_from_world: Vec<(Matrix3<f64>, V3)>,
+}
+
+impl PosedScene<'_> {
+    fn ray_to_local(&self, i: usize, ray: &Ray) -> Ray {
+        let (rt, t) = &self.local_from_world[i];
+        Ray {
+            origin: rt * (ray.origin - t),
+            dir: rt * ray.dir,
+        }
+    }
 }
 
 impl Scene {
@@ -277,9 +290,20 @@ impl Scene {
 
     /// The scene frozen at time `t_s`.
     pub fn at(&self, t_s: f64) -> PosedScene<'_> {
+        let poses: Vec<Pose> = self.objects.iter().map(|o| o.pose_at(t_s)).collect();
+        let local_from_world = poses
+            .iter()
+            .map(|p| {
+                (
+                    p.rotation.to_rotation_matrix().matrix().transpose(),
+                    p.translation.vector,
+                )
+            })
+            .collect();
         PosedScene {
             scene: self,
-            poses: self.objects.iter().map(|o| o.pose_at(t_s)).collect(),
+            poses,
+            local_from_world,
         }
     }
 }
@@ -294,8 +318,8 @@ impl PosedScene<'_> {
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
         let mut best: Option<(usize, LocalHit, Ray)> = None;
         let mut t_best = t_max;
-        for (i, (obj, pose)) in self.scene.objects.iter().zip(&self.poses).enumerate() {
-            let local = ray.to_local(pose);
+        for (i, obj) in self.scene.objects.iter().enumerate() {
+            let local = self.ray_to_local(i, ray);
             if let Some(h) = obj.shape.intersect(&local, t_min, t_best) {
                 t_best = h.t_m;
                 best = Some((i, h, local));
@@ -323,11 +347,10 @@ impl PosedScene<'_> {
             dir: d / len,
         };
         let eps = 1e-7 * (1.0 + from_m.norm());
-        self.scene
-            .objects
-            .iter()
-            .zip(&self.poses)
-            .any(|(o, p)| o.shape.occludes(&ray.to_local(p), eps, len - eps))
+        self.scene.objects.iter().enumerate().any(|(i, o)| {
+            o.shape
+                .occludes(&self.ray_to_local(i, &ray), eps, len - eps)
+        })
     }
 }
 
