@@ -153,25 +153,67 @@ impl Pattern {
     /// integers; 0 (dark) outside the DMD.
     #[inline]
     pub fn sample(&self, u: f32, v: f32) -> f32 {
-        let (w, h) = (self.width as i32, self.height as i32);
-        if !(u >= -0.5 && v >= -0.5 && u < w as f32 - 0.5 && v < h as f32 - 0.5) {
-            return 0.0;
+        match Tap::new(self.width, self.height, u, v) {
+            Some(t) => self.sample_tap(&t),
+            None => 0.0,
         }
-        let u = u.clamp(0.0, (w - 1) as f32);
-        let v = v.clamp(0.0, (h - 1) as f32);
-        // Clamped to >= 0 above, so truncation is floor (and avoids a libm call).
-        let (x0, y0) = (u as i32, v as i32);
-        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-        let (fx, fy) = (u - x0 as f32, v - y0 as f32);
-        let at = |x: i32, y: i32| self.values[(y * w + x) as usize];
-        let top = at(x0, y0) + fx * (at(x1, y0) - at(x0, y0));
-        let bot = at(x0, y1) + fx * (at(x1, y1) - at(x0, y1));
-        top + fy * (bot - top)
+    }
+
+    /// Bilinear sample through a precomputed [`Tap`] (made for this size).
+    #[inline]
+    pub fn sample_tap(&self, t: &Tap) -> f32 {
+        let i = t.i00 as usize;
+        let (a, b) = (self.values[i], self.values[i + t.dx as usize]);
+        let (c, d) = (
+            self.values[i + t.dy as usize],
+            self.values[i + (t.dx + t.dy) as usize],
+        );
+        let top = a + t.fx * (b - a);
+        let bot = c + t.fx * (d - c);
+        top + t.fy * (bot - top)
     }
 
     /// Mean value over the DMD (drives the backscatter veil).
     pub fn mean(&self) -> f32 {
         self.values.iter().sum::<f32>() / self.values.len().max(1) as f32
+    }
+}
+
+/// Where and how to sample a DMD coordinate bilinearly: computed once per
+/// camera pixel and reused for every pattern of a sequence.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tap {
+    /// Index of the top-left neighbour.
+    i00: u32,
+    /// Offset to the right neighbour (0 on the last column).
+    dx: u32,
+    /// Offset to the neighbour below (0 on the last row).
+    dy: u32,
+    /// Horizontal weight of the right neighbour.
+    fx: f32,
+    /// Vertical weight of the lower neighbours.
+    fy: f32,
+}
+
+impl Tap {
+    /// The tap of DMD coordinate (u, v) on a `width` x `height` DMD, or None outside it.
+    #[inline]
+    pub fn new(width: u32, height: u32, u: f32, v: f32) -> Option<Tap> {
+        let (w, h) = (width as i32, height as i32);
+        if !(u >= -0.5 && v >= -0.5 && u < w as f32 - 0.5 && v < h as f32 - 0.5) {
+            return None;
+        }
+        let u = u.clamp(0.0, (w - 1) as f32);
+        let v = v.clamp(0.0, (h - 1) as f32);
+        // Clamped to >= 0 above, so truncation is floor (and avoids a libm call).
+        let (x0, y0) = (u as i32, v as i32);
+        Some(Tap {
+            i00: (y0 * w + x0) as u32,
+            dx: (x0 + 1 < w) as u32,
+            dy: if y0 + 1 < h { w as u32 } else { 0 },
+            fx: u - x0 as f32,
+            fy: v - y0 as f32,
+        })
     }
 }
 

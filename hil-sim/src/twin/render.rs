@@ -12,7 +12,7 @@ use super::cache::CameraGeometry;
 use super::device::Rig;
 use super::error::TwinError;
 use super::medium::Medium;
-use super::pattern::{Exposure, Pattern, ProjectorTimeline};
+use super::pattern::{Exposure, Pattern, ProjectorTimeline, Tap};
 use super::scatter::blur_varying;
 use super::scene::Scene;
 use super::sensor::{Image, SensorModel};
@@ -173,20 +173,32 @@ impl Renderer {
                 }
             }
             let view = &g.projectors[pi];
+            let k = &proj.model.intrinsics;
             let mut img = vec![[0.0f32; 3]; w * h];
             img.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
                 let gains = &view.gain[y * w..(y + 1) * w];
                 let uvs = &view.uv_px[y * w..(y + 1) * w];
+                // One bilinear tap per lit pixel, shared by every pattern.
+                let taps: Vec<Option<Tap>> = gains
+                    .iter()
+                    .zip(uvs)
+                    .map(|(g, [u, v])| {
+                        if *g == [0.0; 3] {
+                            None
+                        } else {
+                            Tap::new(k.width, k.height, *u, *v)
+                        }
+                    })
+                    .collect();
                 // Pattern-major within a row: one pattern's few DMD lines stay
                 // in cache while the row samples them (24 patterns of 1 MP do not fit).
                 for (pat, wgt) in &active {
-                    for ((out, gain), [u, v]) in row.iter_mut().zip(gains).zip(uvs) {
-                        if *gain == [0.0; 3] {
-                            continue;
-                        }
-                        let s = pat.sample(*u, *v);
-                        for b in 0..3 {
-                            out[b] += wgt[b] * s;
+                    for (out, tap) in row.iter_mut().zip(&taps) {
+                        if let Some(tap) = tap {
+                            let s = pat.sample_tap(tap);
+                            for b in 0..3 {
+                                out[b] += wgt[b] * s;
+                            }
                         }
                     }
                 }
