@@ -11,3 +11,4 @@ pub mod faults;
 pub mod pty;
 pub mod sim_hardware;
 pub mod soak;
+pub mod twin;

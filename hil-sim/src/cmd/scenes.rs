@@ -1,10 +1,16 @@
-//! `hil-sim scenes`.
+//! `hil-sim scenes`: list the built-in twin scenes.
 
-/// Options of `hil-sim scenes`.
+use hil_sim::twin::scenes::BUILT_IN;
+
+/// Options of `hil-sim scenes` (none).
 #[derive(clap::Args)]
 pub struct Args {}
 
-/// Runs `hil-sim scenes`.
+/// Prints one line per built-in scene: name and description.
 pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("PLACEHOLDER: `hil-sim scenes` is not implemented yet")
+    let width = BUILT_IN.iter().map(|b| b.name.len()).max().unwrap_or(0);
+    for b in BUILT_IN {
+        println!("{:width$}  {}", b.name, b.about);
+    }
+    Ok(())
 }

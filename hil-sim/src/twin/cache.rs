@@ -1,0 +1,303 @@
+//! Per-camera geometry of one scene pose, computed once and reused by every
+//! pattern of a sequence: the camera ray of each pixel, its surface point,
+//! the projector coordinates of that point, the shadow test toward each
+//! projector, and the radiometric gain from projector pixel to camera pixel.
+
+use nalgebra::Point3;
+use rayon::prelude::*;
+
+use super::device::Rig;
+use super::error::TwinError;
+use super::geometry::{Ray, V3};
+use super::medium::Medium;
+use super::scene::PosedScene;
+
+/// Why a camera pixel is or is not lit by one projector.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Illum {
+    /// The projector lights this surface point.
+    Lit = 0,
+    /// The point faces the projector and is on its DMD, but something blocks the light.
+    Shadowed = 1,
+    /// The point projects outside the DMD (or behind the projector).
+    OutsideDmd = 2,
+    /// The surface faces away from the projector.
+    BackFacing = 3,
+    /// The camera ray hits nothing.
+    NoSurface = 4,
+}
+
+/// What one projector contributes to each camera pixel.
+#[derive(Clone, Debug)]
+pub struct ProjectorView {
+    /// DMD coordinate of each pixel's surface point (NaN when none).
+    pub uv_px: Vec<[f32; 2]>,
+    /// Irradiance-to-signal gain per LED band (0 unless lit): LED power x
+    /// inverse-square falloff x (albedo cos + specular) x water transmittance.
+    pub gain: Vec<[f32; 3]>,
+    /// Lighting state.
+    pub illum: Vec<Illum>,
+}
+
+/// The cached geometry of one camera for one scene pose.
+#[derive(Clone, Debug)]
+pub struct CameraGeometry {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// z of the surface point in the camera frame, metres (NaN: no surface).
+    pub depth_m: Vec<f32>,
+    /// World surface point, metres (NaN: no surface).
+    pub point_m: Vec<[f32; 3]>,
+    /// World unit normal facing the camera (NaN: no surface).
+    pub normal: Vec<[f32; 3]>,
+    /// Object index (u16::MAX: no surface).
+    pub object: Vec<u16>,
+    /// Ambient signal per second per band: albedo x (scene + material ambient) + direct ambient.
+    pub ambient: Vec<[f32; 3]>,
+    /// Length of the camera-side water path, metres (0 in air).
+    pub water_path_m: Vec<f32>,
+    /// One view per projector of the rig.
+    pub projectors: Vec<ProjectorView>,
+    /// Lit by two or more projectors (the aliased overlap of seed 000).
+    pub overlap: Vec<bool>,
+}
+
+/// The cached columns of one image row (rows are computed in parallel,
+/// then concatenated; one allocation per row, not per pixel).
+struct RowGeom {
+    depth: Vec<f32>,
+    point: Vec<[f32; 3]>,
+    normal: Vec<[f32; 3]>,
+    object: Vec<u16>,
+    ambient: Vec<[f32; 3]>,
+    water: Vec<f32>,
+    proj: Vec<ProjectorView>,
+}
+
+impl RowGeom {
+    fn with_capacity(n: usize, projectors: usize) -> RowGeom {
+        RowGeom {
+            depth: Vec::with_capacity(n),
+            point: Vec::with_capacity(n),
+            normal: Vec::with_capacity(n),
+            object: Vec::with_capacity(n),
+            ambient: Vec::with_capacity(n),
+            water: Vec::with_capacity(n),
+            proj: (0..projectors)
+                .map(|_| ProjectorView::with_capacity(n))
+                .collect(),
+        }
+    }
+}
+
+impl ProjectorView {
+    fn with_capacity(n: usize) -> ProjectorView {
+        ProjectorView {
+            uv_px: Vec::with_capacity(n),
+            gain: Vec::with_capacity(n),
+            illum: Vec::with_capacity(n),
+        }
+    }
+
+    fn push(&mut self, (uv, gain, illum): ([f32; 2], [f32; 3], Illum)) {
+        self.uv_px.push(uv);
+        self.gain.push(gain);
+        self.illum.push(illum);
+    }
+}
+
+const NAN2: [f32; 2] = [f32::NAN; 2];
+const NAN3: [f32; 3] = [f32::NAN; 3];
+
+fn f3(v: &V3) -> [f32; 3] {
+    [v.x as f32, v.y as f32, v.z as f32]
+}
+
+impl CameraGeometry {
+    /// Casts every pixel's ray into the posed scene and tests each projector.
+    pub fn new(scene: &PosedScene, rig: &Rig, camera: usize) -> Result<CameraGeometry, TwinError> {
+        rig.validate()?;
+        let cam = rig.cameras.get(camera).ok_or(TwinError::NoSuchCamera {
+            index: camera,
+            count: rig.cameras.len(),
+        })?;
+        let (w, h) = (cam.model.intrinsics.width, cam.model.intrinsics.height);
+        let np = rig.projectors.len();
+        let rows: Vec<RowGeom> = (0..h)
+            .into_par_iter()
+            .map(|y| {
+                let mut row = RowGeom::with_capacity(w as usize, np);
+                for x in 0..w {
+                    pixel(scene, rig, camera, x as f64, y as f64, &mut row);
+                }
+                row
+            })
+            .collect();
+        let n = (w * h) as usize;
+        let mut g = CameraGeometry {
+            width: w,
+            height: h,
+            depth_m: Vec::with_capacity(n),
+            point_m: Vec::with_capacity(n),
+            normal: Vec::with_capacity(n),
+            object: Vec::with_capacity(n),
+            ambient: Vec::with_capacity(n),
+            water_path_m: Vec::with_capacity(n),
+            projectors: (0..np).map(|_| ProjectorView::with_capacity(n)).collect(),
+            overlap: Vec::new(),
+        };
+        for r in rows {
+            g.depth_m.extend(r.depth);
+            g.point_m.extend(r.point);
+            g.normal.extend(r.normal);
+            g.object.extend(r.object);
+            g.ambient.extend(r.ambient);
+            g.water_path_m.extend(r.water);
+            for (view, rv) in g.projectors.iter_mut().zip(r.proj) {
+                view.uv_px.extend(rv.uv_px);
+                view.gain.extend(rv.gain);
+                view.illum.extend(rv.illum);
+            }
+        }
+        g.overlap = (0..n)
+            .map(|i| {
+                g.projectors
+                    .iter()
+                    .filter(|p| p.illum[i] == Illum::Lit)
+                    .count()
+                    >= 2
+            })
+            .collect();
+        Ok(g)
+    }
+}
+
+/// The camera ray of pixel (x, y) in the world, and where its water path starts.
+fn camera_ray(rig: &Rig, camera: usize, x: f64, y: f64) -> Option<Ray> {
+    let model = &rig.cameras[camera].model;
+    match &rig.medium {
+        Medium::Air => Some(model.pixel_ray(x, y)),
+        Medium::Water(water) => {
+            let local = water.refract_out(&model.local_dir(x, y))?;
+            let pose = &model.world_from_device;
+            Some(Ray {
+                origin: pose.transform_point(&Point3::from(local.origin)).coords,
+                dir: pose.rotation * local.dir,
+            })
+        }
+    }
+}
+
+fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, x: f64, y: f64, row: &mut RowGeom) {
+    let s = scene.scene();
+    let direct = s.ambient_direct.map(|a| a as f32);
+    let miss = |row: &mut RowGeom| {
+        row.depth.push(f32::NAN);
+        row.point.push(NAN3);
+        row.normal.push(NAN3);
+        row.object.push(u16::MAX);
+        row.ambient.push(direct);
+        row.water.push(0.0);
+        row.proj
+            .iter_mut()
+            .for_each(|p| p.push((NAN2, [0.0; 3], Illum::NoSurface)));
+    };
+    let Some(ray) = camera_ray(rig, camera, x, y) else {
+        return miss(row);
+    };
+    let Some(hit) = scene.intersect(&ray, 0.0, f64::INFINITY) else {
+        return miss(row);
+    };
+    let cam_model = &rig.cameras[camera].model;
+    let p_cam = cam_model
+        .world_from_device
+        .inverse_transform_point(&Point3::from(hit.point_m));
+    let material = &s.objects[hit.object].material;
+    let albedo = material.albedo.at(&hit.local_m);
+    let (water_c, view_to) = match rig.medium {
+        Medium::Air => (0.0, cam_model.centre()),
+        Medium::Water(_) => (hit.t_m, ray.origin),
+    };
+    let v = (view_to - hit.point_m).normalize();
+    // Surface ambient reaches the camera through the camera-side water path.
+    let cam_trans = match &rig.medium {
+        Medium::Air => [1.0; 3],
+        Medium::Water(wtr) => wtr.transmittance(water_c),
+    };
+    let ambient = [0, 1, 2].map(|b| {
+        let on_surface = s.ambient_surface[b] + material.ambient[b] as f64;
+        albedo[b] * (on_surface * cam_trans[b]) as f32 + direct[b]
+    });
+    for (pi, pr) in rig.projectors.iter().enumerate() {
+        let state = (|| {
+            let model = &pr.model;
+            let q = model
+                .world_from_device
+                .inverse_transform_point(&Point3::from(hit.point_m))
+                .coords;
+            // Where the light leaves the device: its centre, or its port crossing in water.
+            let (aim_local, water_p) = match &rig.medium {
+                Medium::Air => (Some(V3::zeros()), 0.0),
+                Medium::Water(wtr) => match wtr.port_crossing(&q) {
+                    Some(c) => (Some(c), (q - c).norm()),
+                    None => (None, 0.0),
+                },
+            };
+            let Some(aim_local) = aim_local else {
+                return (NAN2, [0.0; 3], Illum::OutsideDmd);
+            };
+            let dir_local = if aim_local.norm() > 0.0 { aim_local } else { q };
+            let Some(uv) = model.project_local(&dir_local) else {
+                return (NAN2, [0.0; 3], Illum::OutsideDmd);
+            };
+            let uv32 = [uv[0] as f32, uv[1] as f32];
+            if !model.contains(uv) {
+                return (uv32, [0.0; 3], Illum::OutsideDmd);
+            }
+            let aim = model
+                .world_from_device
+                .transform_point(&Point3::from(aim_local))
+                .coords;
+            let l = (aim - hit.point_m).normalize();
+            let cos_i = hit.normal.dot(&l);
+            if cos_i <= 0.0 || hit.normal.dot(&v) <= 0.0 {
+                return (uv32, [0.0; 3], Illum::BackFacing);
+            }
+            // Start the shadow ray just off the surface to avoid self-hits.
+            let start = hit.point_m + hit.normal * 1e-6;
+            if scene.occluded(&start, &aim) {
+                return (uv32, [0.0; 3], Illum::Shadowed);
+            }
+            let falloff = (pr.reference_distance_m / q.norm()).powi(2);
+            let half = (l + v).normalize();
+            let spec = if material.specular > 0.0 {
+                material.specular as f64
+                    * hit
+                        .normal
+                        .dot(&half)
+                        .max(0.0)
+                        .powf(material.shininess as f64)
+            } else {
+                0.0
+            };
+            let trans = match &rig.medium {
+                Medium::Air => [1.0; 3],
+                Medium::Water(wtr) => wtr.transmittance(water_p + water_c),
+            };
+            let gain = [0, 1, 2].map(|b| {
+                (pr.led_power[b] * falloff * (albedo[b] as f64 * cos_i + spec) * trans[b]) as f32
+            });
+            (uv32, gain, Illum::Lit)
+        })();
+        row.proj[pi].push(state);
+    }
+    row.depth.push(p_cam.z as f32);
+    row.point.push(f3(&hit.point_m));
+    row.normal.push(f3(&hit.normal));
+    row.object.push(hit.object as u16);
+    row.ambient.push(ambient);
+    row.water.push(water_c as f32);
+}

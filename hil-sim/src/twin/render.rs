@@ -1,0 +1,354 @@
+//! Image formation: integrate what each projector displayed during the
+//! exposure over the cached geometry, add ambient, apply the medium, then
+//! the sensor (seed 000 eq. 4-7: in the overlap a camera sees the sum of
+//! both projectors; seed 001 eq. 6: a long exposure sums its patterns).
+
+use std::sync::{Arc, Mutex};
+
+use rand::Rng;
+use rayon::prelude::*;
+
+use super::cache::CameraGeometry;
+use super::device::Rig;
+use super::error::TwinError;
+use super::medium::Medium;
+use super::pattern::{Exposure, Pattern, ProjectorTimeline, Tap};
+use super::scatter::blur_varying;
+use super::scene::Scene;
+use super::sensor::{Image, SensorModel};
+use super::truth::Truth;
+
+/// Time slices per exposure for a moving scene (geometry is recomputed per slice).
+pub const MOTION_SAMPLES: usize = 8;
+
+/// Linear band exposures (twin units x seconds) of one camera frame, kept
+/// apart per source so that sums can be checked and clean targets written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Exposed {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// Ambient light (surface ambient + direct stray light) per pixel and band.
+    pub ambient: Vec<[f32; 3]>,
+    /// Each projector's light (including its backscatter veil in water).
+    pub per_projector: Vec<Vec<[f32; 3]>>,
+}
+
+impl Exposed {
+    /// Ambient plus every projector.
+    pub fn total(&self) -> Vec<[f32; 3]> {
+        let mut out = self.ambient.clone();
+        for p in &self.per_projector {
+            add_into(&mut out, p);
+        }
+        out
+    }
+
+    /// Ambient plus projector `p` alone (what a single-head reference run sees).
+    pub fn single(&self, p: usize) -> Vec<[f32; 3]> {
+        let mut out = self.ambient.clone();
+        add_into(&mut out, &self.per_projector[p]);
+        out
+    }
+
+    fn accumulate(&mut self, other: &Exposed) {
+        add_into(&mut self.ambient, &other.ambient);
+        for (a, b) in self.per_projector.iter_mut().zip(&other.per_projector) {
+            add_into(a, b);
+        }
+    }
+}
+
+fn add_into(acc: &mut [[f32; 3]], x: &[[f32; 3]]) {
+    for (a, b) in acc.iter_mut().zip(x) {
+        for c in 0..3 {
+            a[c] += b[c];
+        }
+    }
+}
+
+/// A rendered camera frame with everything that goes with it.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// The sensor image, with noise.
+    pub image: Image,
+    /// The same image without noise (still clipped, gamma'd, quantised).
+    pub clean: Image,
+    /// Noise-free image of ambient + each projector alone (de-aliasing targets).
+    pub per_projector_clean: Vec<Image>,
+    /// Ground truth at mid-exposure.
+    pub truth: Truth,
+    /// The linear exposures the images came from.
+    pub exposed: Exposed,
+}
+
+/// Cached geometry of one camera for one scene pose: build once, then
+/// render any number of pattern sequences cheaply.
+#[derive(Debug)]
+pub struct Renderer {
+    rig: Rig,
+    geometry: Arc<CameraGeometry>,
+    /// Defocused patterns by (displayed pattern, projector), so a sequence
+    /// shown again is not blurred again. Holding the source `Arc` keeps its
+    /// address from being reused while cached.
+    defocus_cache: Mutex<Vec<DefocusEntry>>,
+}
+
+/// (shown pattern, projector index, its defocused image).
+type DefocusEntry = (Arc<Pattern>, usize, Arc<Pattern>);
+
+/// Defocused patterns kept per renderer (a 24-pattern sequence for two projectors fits).
+const DEFOCUS_CACHE: usize = 64;
+
+impl Renderer {
+    /// Casts the camera's rays into `scene` frozen at `time_s` (expensive).
+    pub fn new(
+        scene: &Scene,
+        rig: &Rig,
+        camera: usize,
+        time_s: f64,
+    ) -> Result<Renderer, TwinError> {
+        let geometry = Arc::new(CameraGeometry::new(&scene.at(time_s), rig, camera)?);
+        Ok(Renderer {
+            rig: rig.clone(),
+            geometry,
+            defocus_cache: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// The cached geometry.
+    pub fn geometry(&self) -> &CameraGeometry {
+        &self.geometry
+    }
+
+    /// Linear exposures for what each projector displayed during `exposure`
+    /// (cheap: pattern look-ups only, no ray casting).
+    pub fn exposed(
+        &self,
+        timelines: &[ProjectorTimeline],
+        exposure: Exposure,
+    ) -> Result<Exposed, TwinError> {
+        exposure.validate()?;
+        if timelines.len() != self.rig.projectors.len() {
+            return Err(TwinError::TimelineCount {
+                given: timelines.len(),
+                expected: self.rig.projectors.len(),
+            });
+        }
+        let g = &self.geometry;
+        let (w, h) = (g.width as usize, g.height as usize);
+        let secs = exposure.duration_s() as f32;
+        let mut ambient: Vec<[f32; 3]> = g.ambient.iter().map(|a| a.map(|v| v * secs)).collect();
+        let mut per_projector = Vec::with_capacity(timelines.len());
+        for (pi, tl) in timelines.iter().enumerate() {
+            let proj = &self.rig.projectors[pi];
+            let mut active: Vec<(Arc<Pattern>, [f32; 3])> = Vec::new();
+            let mut mean_drive = [0.0f64; 3];
+            for s in &tl.shown {
+                if !(s.start_s.is_finite() && s.end_s.is_finite() && s.end_s >= s.start_s) {
+                    return Err(TwinError::BadInterval {
+                        start_s: s.start_s,
+                        end_s: s.end_s,
+                    });
+                }
+                let k = &proj.model.intrinsics;
+                if s.pattern.width != k.width || s.pattern.height != k.height {
+                    return Err(TwinError::PatternSize {
+                        projector: pi,
+                        got_w: s.pattern.width,
+                        got_h: s.pattern.height,
+                        want_w: k.width,
+                        want_h: k.height,
+                    });
+                }
+                let dt = exposure.overlap_s(s.start_s, s.end_s);
+                if dt > 0.0 {
+                    let weight = s.led.map(|l| l * dt as f32);
+                    let mean = s.pattern.mean() as f64;
+                    for b in 0..3 {
+                        mean_drive[b] += weight[b] as f64 * mean;
+                    }
+                    active.push((self.defocused(&s.pattern, pi), weight));
+                }
+            }
+            let view = &g.projectors[pi];
+            let k = &proj.model.intrinsics;
+            let mut img = vec![[0.0f32; 3]; w * h];
+            img.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                let gains = &view.gain[y * w..(y + 1) * w];
+                let uvs = &view.uv_px[y * w..(y + 1) * w];
+                // One bilinear tap per lit pixel, shared by every pattern.
+                let taps: Vec<Option<Tap>> = gains
+                    .iter()
+                    .zip(uvs)
+                    .map(|(g, [u, v])| {
+                        if *g == [0.0; 3] {
+                            None
+                        } else {
+                            Tap::new(k.width, k.height, *u, *v)
+                        }
+                    })
+                    .collect();
+                // Pattern-major within a row: one pattern's few DMD lines stay
+                // in cache while the row samples them (24 patterns of 1 MP do not fit).
+                for (pat, wgt) in &active {
+                    for (out, tap) in row.iter_mut().zip(&taps) {
+                        if let Some(tap) = tap {
+                            let s = pat.sample_tap(tap);
+                            for b in 0..3 {
+                                out[b] += wgt[b] * s;
+                            }
+                        }
+                    }
+                }
+                for (out, gain) in row.iter_mut().zip(gains) {
+                    for b in 0..3 {
+                        out[b] *= gain[b];
+                    }
+                }
+            });
+            if let Medium::Water(water) = &self.rig.medium {
+                // Backscatter: light the projector puts into the water the camera looks through.
+                let veil_drive = [0, 1, 2].map(|b| proj.led_power[b] * mean_drive[b]);
+                for (o, &path) in img.iter_mut().zip(&g.water_path_m) {
+                    let veil = water.veil(path as f64);
+                    for b in 0..3 {
+                        o[b] += (veil * veil_drive[b]) as f32;
+                    }
+                }
+            }
+            per_projector.push(img);
+        }
+        if let Medium::Water(water) = &self.rig.medium {
+            let sigma: Vec<f32> = g
+                .water_path_m
+                .iter()
+                .map(|&p| p * water.forward_sigma_px_per_m as f32)
+                .collect();
+            ambient = blur_varying(&ambient, w, h, &sigma);
+            for p in per_projector.iter_mut() {
+                *p = blur_varying(p, w, h, &sigma);
+            }
+        }
+        Ok(Exposed {
+            width: g.width,
+            height: g.height,
+            ambient,
+            per_projector,
+        })
+    }
+
+    /// The pattern as projector `pi`'s lens puts it on the scene (cached).
+    fn defocused(&self, pattern: &Arc<Pattern>, pi: usize) -> Arc<Pattern> {
+        let mut cache = self.defocus_cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, _, d)) = cache
+            .iter()
+            .find(|(p, i, _)| *i == pi && Arc::ptr_eq(p, pattern))
+        {
+            return d.clone();
+        }
+        let d = Arc::new(pattern.defocused(self.rig.projectors[pi].defocus_sigma_px));
+        if cache.len() >= DEFOCUS_CACHE {
+            cache.remove(0);
+        }
+        cache.push((pattern.clone(), pi, d.clone()));
+        d
+    }
+
+    /// Only the noisy sensor image and its saturation mask: the fast path
+    /// of a simulated camera.
+    pub fn image(
+        &self,
+        timelines: &[ProjectorTimeline],
+        exposure: Exposure,
+        sensor: &SensorModel,
+        noise_seed: u64,
+    ) -> Result<(Image, Vec<bool>), TwinError> {
+        sensor.validate()?;
+        let e = self.exposed(timelines, exposure)?;
+        Ok(sensor.expose(e.width, e.height, &e.total(), Some(noise_seed)))
+    }
+
+    /// A full frame: exposures, sensor image with noise from `noise_seed`,
+    /// clean images and truth.
+    pub fn frame(
+        &self,
+        timelines: &[ProjectorTimeline],
+        exposure: Exposure,
+        sensor: &SensorModel,
+        noise_seed: u64,
+    ) -> Result<Frame, TwinError> {
+        let exposed = self.exposed(timelines, exposure)?;
+        finish(self.geometry.clone(), exposed, sensor, noise_seed)
+    }
+}
+
+fn finish(
+    geometry: Arc<CameraGeometry>,
+    exposed: Exposed,
+    sensor: &SensorModel,
+    noise_seed: u64,
+) -> Result<Frame, TwinError> {
+    sensor.validate()?;
+    let (w, h) = (exposed.width, exposed.height);
+    let total = exposed.total();
+    let (image, _) = sensor.expose(w, h, &total, Some(noise_seed));
+    let (clean, saturated) = sensor.expose(w, h, &total, None);
+    let per_projector_clean = (0..exposed.per_projector.len())
+        .map(|p| sensor.expose(w, h, &exposed.single(p), None).0)
+        .collect();
+    Ok(Frame {
+        image,
+        clean,
+        per_projector_clean,
+        truth: Truth {
+            geometry,
+            saturated,
+        },
+        exposed,
+    })
+}
+
+/// Renders what camera `camera` records during `exposure` while each
+/// projector shows its timeline: the entry point for simulated cameras.
+/// A static scene is ray-cast once; a moving one in [`MOTION_SAMPLES`]
+/// time slices whose exposures add up. Noise comes from `rng`.
+pub fn render_exposure(
+    scene: &Scene,
+    rig: &Rig,
+    camera: usize,
+    timelines: &[ProjectorTimeline],
+    exposure: Exposure,
+    sensor: &SensorModel,
+    rng: &mut impl Rng,
+) -> Result<Frame, TwinError> {
+    exposure.validate()?;
+    let mid = 0.5 * (exposure.start_s + exposure.end_s);
+    let truth_renderer = Renderer::new(scene, rig, camera, mid)?;
+    let exposed = if scene.is_dynamic() {
+        let dt = exposure.duration_s() / MOTION_SAMPLES as f64;
+        let mut acc: Option<Exposed> = None;
+        for k in 0..MOTION_SAMPLES {
+            let slice = Exposure {
+                start_s: exposure.start_s + k as f64 * dt,
+                end_s: exposure.start_s + (k + 1) as f64 * dt,
+            };
+            let r = Renderer::new(scene, rig, camera, 0.5 * (slice.start_s + slice.end_s))?;
+            let e = r.exposed(timelines, slice)?;
+            match acc.as_mut() {
+                None => acc = Some(e),
+                Some(a) => a.accumulate(&e),
+            }
+        }
+        acc.expect("MOTION_SAMPLES > 0")
+    } else {
+        truth_renderer.exposed(timelines, exposure)?
+    };
+    finish(
+        truth_renderer.geometry.clone(),
+        exposed,
+        sensor,
+        rng.random(),
+    )
+}
