@@ -14,6 +14,15 @@ pub fn camera_matrix(k: &Intrinsics) -> Matrix3<f64> {
     Matrix3::new(k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0)
 }
 
+/// One view of a planar target: board points and where they were seen.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanarView {
+    /// Points on the board plane (z = 0), metres.
+    pub board_m: Vec<Point2<f64>>,
+    /// The same points in the image, pixels (same order).
+    pub image_px: Vec<Point2<f64>>,
+}
+
 /// Errors of Zhang's closed form.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ZhangError {
@@ -127,19 +136,18 @@ pub fn pose_from_homography(k: &Intrinsics, h: &Matrix3<f64>) -> Option<Pose> {
 
 /// Closed-form intrinsics and per-view board poses (distortion ignored).
 ///
-/// `board_m` holds the board's corners in its own plane (metres, z = 0);
-/// `views_px[v]` the same corners detected in view `v`. `image_size` is the
+/// Each view pairs board points (metres, board plane z = 0) with their
+/// detected pixels. `image_size` is the
 /// sensor size in pixels; it conditions the arithmetic and supplies the
 /// fallback principal point (the image centre, as OpenCV's initialisation)
 /// when the views cannot determine it.
 pub fn closed_form(
-    board_m: &[Point2<f64>],
-    views_px: &[Vec<Point2<f64>>],
+    views: &[PlanarView],
     image_size: (u32, u32),
 ) -> Result<(Intrinsics, Vec<Pose>), ZhangError> {
-    if views_px.len() < 2 {
+    if views.len() < 2 {
         return Err(ZhangError::TooFewViews {
-            got: views_px.len(),
+            got: views.len(),
             needed: 2,
         });
     }
@@ -157,9 +165,9 @@ pub fn closed_form(
         0.0,
         1.0,
     );
-    let mut homographies = Vec::with_capacity(views_px.len());
-    for (view, pts) in views_px.iter().enumerate() {
-        let hpx = fit_homography(board_m, pts)
+    let mut homographies = Vec::with_capacity(views.len());
+    for (view, v) in views.iter().enumerate() {
+        let hpx = fit_homography(&v.board_m, &v.image_px)
             .map_err(|source| ZhangError::Homography { view, source })?;
         homographies.push(hpx);
     }
@@ -251,11 +259,14 @@ mod tests {
         };
         let b = board();
         let truth = views();
-        let obs: Vec<Vec<_>> = truth
+        let obs: Vec<PlanarView> = truth
             .iter()
-            .map(|pose| b.iter().map(|p| project(&k, pose, p)).collect())
+            .map(|pose| PlanarView {
+                board_m: b.clone(),
+                image_px: b.iter().map(|p| project(&k, pose, p)).collect(),
+            })
             .collect();
-        let (est, poses) = closed_form(&b, &obs, (640, 480)).unwrap();
+        let (est, poses) = closed_form(&obs, (640, 480)).unwrap();
         assert!(
             (est.fx - k.fx).abs() < 1e-6 && (est.fy - k.fy).abs() < 1e-6,
             "{est:?}"
@@ -274,7 +285,14 @@ mod tests {
     fn one_view_is_too_few() {
         let b = board();
         assert_eq!(
-            closed_form(&b, &[b.clone()], (640, 480)).unwrap_err(),
+            closed_form(
+                &[PlanarView {
+                    board_m: b.clone(),
+                    image_px: b
+                }],
+                (640, 480)
+            )
+            .unwrap_err(),
             ZhangError::TooFewViews { got: 1, needed: 2 }
         );
     }
