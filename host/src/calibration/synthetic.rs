@@ -1,0 +1,301 @@
+//! Formula-based renders of calibration views: a stand-in for the digital twin.
+//!
+//! PLACEHOLDER: until hil-sim's twin renders calibration scenes, tests and
+//! `slscan calibrate --sim` use these closed-form images instead. Each pixel
+//! is integrated over `supersample^2` sub-pixel rays: the ray through the
+//! sub-pixel (after inverting the lens distortion) meets the board plane, and
+//! the checker colour there is averaged, so squares are anti-aliased exactly
+//! as a box-filter sensor sees them. Gaussian noise is added and the result
+//! quantised to 8 or 16 bits. The true corner pixels are the board corners
+//! projected through the same model, so detection error is measurable.
+
+use nalgebra::{Point2, Point3, Vector3};
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use rayon::prelude::*;
+
+use super::board::{Checkerboard, GrayImage};
+use super::PinholeModel;
+
+/// Sensor bit depth of a rendered view.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BitDepth {
+    /// 8-bit: 255 levels.
+    Eight,
+    /// 16-bit: 65535 levels.
+    Sixteen,
+}
+
+impl BitDepth {
+    /// Largest code value.
+    pub fn max_code(self) -> f64 {
+        match self {
+            BitDepth::Eight => 255.0,
+            BitDepth::Sixteen => 65535.0,
+        }
+    }
+}
+
+/// How a view is rendered.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RenderSettings {
+    /// Sub-pixel rays per pixel side.
+    pub supersample: u32,
+    /// Grey level of dark squares, [0, 1].
+    pub dark: f64,
+    /// Grey level of light squares and the board margin, [0, 1].
+    pub light: f64,
+    /// Grey level off the board, [0, 1].
+    pub background: f64,
+    /// White margin around the squares, in squares.
+    pub margin_squares: f64,
+    /// Standard deviation of additive Gaussian noise, grey levels in [0, 1].
+    pub noise_sigma: f64,
+    /// Quantisation.
+    pub bit_depth: BitDepth,
+    /// Seed of the noise.
+    pub seed: u64,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            supersample: 4,
+            dark: 0.12,
+            light: 0.85,
+            background: 0.35,
+            margin_squares: 1.0,
+            noise_sigma: 0.01,
+            bit_depth: BitDepth::Eight,
+            seed: 1,
+        }
+    }
+}
+
+/// Undistorted normalised ray `(x, y)` at every pixel *corner*: entry
+/// `(i, j)` is at pixel position `(i - 0.5, j - 0.5)`. Sub-pixel rays are
+/// interpolated bilinearly inside a pixel (distortion is smooth at that scale).
+fn corner_rays(camera: &PinholeModel) -> Vec<Option<(f64, f64)>> {
+    let (w, h) = (camera.width_px as usize + 1, camera.height_px as usize + 1);
+    (0..w * h)
+        .into_par_iter()
+        .map(|k| camera.pixel_to_normalised((k % w) as f64 - 0.5, (k / w) as f64 - 0.5))
+        .collect()
+}
+
+/// Where the camera ray `(x, y, 1)` meets the board plane, board frame.
+fn hit_board(camera: &PinholeModel, x: f64, y: f64) -> Option<Point2<f64>> {
+    let r = &camera.pose.rotation;
+    let t = &camera.pose.translation_m;
+    let normal = r.column(2).into_owned();
+    let d = Vector3::new(x, y, 1.0);
+    let denom = normal.dot(&d);
+    if denom.abs() < 1e-12 {
+        return None;
+    }
+    let s = normal.dot(t) / denom;
+    if s <= 0.0 {
+        return None;
+    }
+    let p = r.transpose() * (d * s - t);
+    Some(Point2::new(p.x, p.y))
+}
+
+fn board_grey(board: &Checkerboard, s: &RenderSettings, p: Option<Point2<f64>>) -> f64 {
+    let Some(p) = p else {
+        return s.background;
+    };
+    match board.is_dark(p.x, p.y) {
+        Some(true) => s.dark,
+        Some(false) => s.light,
+        None => {
+            let m = s.margin_squares * board.square_m;
+            let (x1, y1) = (
+                board.cols as f64 * board.square_m,
+                board.rows as f64 * board.square_m,
+            );
+            let on_margin = p.x >= -board.square_m - m
+                && p.x <= x1 + m
+                && p.y >= -board.square_m - m
+                && p.y <= y1 + m;
+            if on_margin {
+                s.light
+            } else {
+                s.background
+            }
+        }
+    }
+}
+
+fn quantise(v: f64, depth: BitDepth) -> f32 {
+    let m = depth.max_code();
+    ((v.clamp(0.0, 1.0) * m).round() / m) as f32
+}
+
+/// Renders `board` seen by `camera`, whose pose maps board -> camera.
+pub fn render_checkerboard(
+    camera: &PinholeModel,
+    board: &Checkerboard,
+    settings: &RenderSettings,
+) -> GrayImage {
+    let (w, h) = (camera.width_px as usize, camera.height_px as usize);
+    let rays = corner_rays(camera);
+    let n = settings.supersample.max(1) as usize;
+    let mut pixels: Vec<f32> = (0..w * h)
+        .into_par_iter()
+        .map(|k| {
+            let (u, v) = (k % w, k / w);
+            let c = |i: usize, j: usize| rays[j * (w + 1) + i];
+            let (Some(a), Some(b), Some(cc), Some(d)) =
+                (c(u, v), c(u + 1, v), c(u, v + 1), c(u + 1, v + 1))
+            else {
+                return settings.background as f32;
+            };
+            let mut sum = 0.0;
+            for sy in 0..n {
+                let fy = (sy as f64 + 0.5) / n as f64;
+                for sx in 0..n {
+                    let fx = (sx as f64 + 0.5) / n as f64;
+                    let x = (a.0 * (1.0 - fx) + b.0 * fx) * (1.0 - fy)
+                        + (cc.0 * (1.0 - fx) + d.0 * fx) * fy;
+                    let y = (a.1 * (1.0 - fx) + b.1 * fx) * (1.0 - fy)
+                        + (cc.1 * (1.0 - fx) + d.1 * fx) * fy;
+                    sum += board_grey(board, settings, hit_board(camera, x, y));
+                }
+            }
+            (sum / (n * n) as f64) as f32
+        })
+        .collect();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(settings.seed);
+    let noise = Normal::new(0.0, settings.noise_sigma.max(0.0)).ok();
+    for p in &mut pixels {
+        let e = noise.map_or(0.0, |d| d.sample(&mut rng));
+        *p = quantise(f64::from(*p) + e, settings.bit_depth);
+    }
+    GrayImage::from_raw(w as u32, h as u32, pixels)
+        .unwrap_or_else(|| GrayImage::new(w as u32, h as u32))
+}
+
+/// The true pixel positions of the board's inner corners (row by row);
+/// `None` for a corner behind the camera.
+pub fn true_corners(camera: &PinholeModel, board: &Checkerboard) -> Vec<Option<Point2<f64>>> {
+    board
+        .corners_m()
+        .iter()
+        .map(|p| {
+            camera
+                .project(&Point3::new(p.x, p.y, 0.0))
+                .map(Point2::from)
+        })
+        .collect()
+}
+
+/// Absolute phase maps in x and y that a projector would produce on the board.
+///
+/// `camera` and `projector` carry their poses board -> device. At each camera
+/// pixel centre the ray meets the board; that point's projector pixel
+/// `(u_p, v_p)` gives `phase_x = 2 pi u_p / period_px`, `phase_y = 2 pi v_p /
+/// period_px`, plus Gaussian noise of `noise_rad`. Pixels off the board or
+/// outside the projector's DMD are NaN (no fringe there).
+pub fn render_phase_maps(
+    camera: &PinholeModel,
+    projector: &PinholeModel,
+    board: &Checkerboard,
+    period_px: f64,
+    noise_rad: f64,
+    seed: u64,
+) -> (GrayImage, GrayImage) {
+    let (w, h) = (camera.width_px as usize, camera.height_px as usize);
+    let tau = std::f64::consts::TAU;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, noise_rad.max(0.0)).ok();
+    let mut px = vec![f32::NAN; w * h];
+    let mut py = vec![f32::NAN; w * h];
+    for k in 0..w * h {
+        let (u, v) = ((k % w) as f64, (k / w) as f64);
+        let Some(hit) = camera
+            .pixel_to_normalised(u, v)
+            .and_then(|(x, y)| hit_board(camera, x, y))
+        else {
+            continue;
+        };
+        let m = board.square_m;
+        let inside = hit.x >= -m
+            && hit.y >= -m
+            && hit.x <= board.cols as f64 * m
+            && hit.y <= board.rows as f64 * m;
+        if !inside {
+            continue;
+        }
+        let Some(p) = projector.project(&Point3::new(hit.x, hit.y, 0.0)) else {
+            continue;
+        };
+        if !projector.contains(&p) {
+            continue;
+        }
+        let mut e = || noise.map_or(0.0, |d| d.sample(&mut rng));
+        px[k] = (tau * p.x / period_px + e()) as f32;
+        py[k] = (tau * p.y / period_px + e()) as f32;
+    }
+    let make = |d: Vec<f32>| {
+        GrayImage::from_raw(w as u32, h as u32, d)
+            .unwrap_or_else(|| GrayImage::new(w as u32, h as u32))
+    };
+    (make(px), make(py))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::rodrigues::pose_from_rodrigues;
+
+    fn scene() -> (PinholeModel, Checkerboard) {
+        let mut cam = PinholeModel::ideal(160, 120, 200.0);
+        cam.pose = pose_from_rodrigues(
+            &Vector3::new(0.1, -0.1, 0.0),
+            &Vector3::new(-0.09, -0.06, 0.5),
+        );
+        let board = Checkerboard {
+            cols: 9,
+            rows: 6,
+            square_m: 0.02,
+        };
+        (cam, board)
+    }
+
+    #[test]
+    fn renders_dark_and_light_squares_where_the_model_says() {
+        let (cam, board) = scene();
+        let s = RenderSettings {
+            noise_sigma: 0.0,
+            ..Default::default()
+        };
+        let img = render_checkerboard(&cam, &board, &s);
+        // Centre of the dark square touching corner (0, 0) from inside (+x, +y).
+        let centre = cam.project(&Point3::new(0.01, 0.01, 0.0)).unwrap();
+        let dark = img.get_pixel(centre.x.round() as u32, centre.y.round() as u32)[0];
+        let centre = cam.project(&Point3::new(0.03, 0.01, 0.0)).unwrap();
+        let light = img.get_pixel(centre.x.round() as u32, centre.y.round() as u32)[0];
+        assert!((f64::from(dark) - s.dark).abs() < 0.01, "{dark}");
+        assert!((f64::from(light) - s.light).abs() < 0.01, "{light}");
+        // Quantised to 8 bits.
+        assert!(img
+            .pixels()
+            .all(|p| ((p[0] * 255.0).round() - p[0] * 255.0).abs() < 1e-3));
+    }
+
+    #[test]
+    fn phase_maps_encode_projector_pixels() {
+        let (cam, board) = scene();
+        let mut proj = PinholeModel::ideal(320, 240, 400.0);
+        proj.pose = cam.pose;
+        let (px, _py) = render_phase_maps(&cam, &proj, &board, 16.0, 0.0, 3);
+        let corner = cam.project(&Point3::new(0.04, 0.04, 0.0)).unwrap();
+        let (u, v) = (corner.x.round(), corner.y.round());
+        let phase = f64::from(px.get_pixel(u as u32, v as u32)[0]);
+        // Same pose, double focal, centred principal point: u_p = 2 u + 0.5.
+        let expected = std::f64::consts::TAU * (2.0 * (u - 79.5) + 159.5) / 16.0;
+        assert!((phase - expected).abs() < 1e-3, "{phase} vs {expected}");
+        assert!(px.get_pixel(0, 0)[0].is_nan());
+    }
+}
