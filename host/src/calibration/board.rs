@@ -52,7 +52,7 @@ impl Checkerboard {
     /// even): then the detector cannot tell corner (0, 0) from the opposite
     /// one and picks the one nearer the image's top-left.
     pub fn is_point_symmetric(&self) -> bool {
-        (self.cols + self.rows) % 2 == 0
+        (self.cols + self.rows).is_multiple_of(2)
     }
 }
 

@@ -86,7 +86,7 @@ pub fn fit_homography(
     let mut sorted: Vec<f64> = eigen.eigenvalues.iter().copied().collect();
     sorted.sort_by(f64::total_cmp);
     // A rank drop beyond one (collinear points) leaves two tiny eigenvalues.
-    if !(sorted[1] > 1e-10 * sorted[8]) {
+    if sorted[1] <= 1e-10 * sorted[8] || sorted[1].is_nan() {
         return Err(HomographyError::Degenerate);
     }
     let h = eigen.eigenvectors.column(imin);

@@ -1,0 +1,124 @@
+//! Small image kernels the detector needs: Gaussian blur, bilinear sampling.
+//!
+//! Plain f32 planes (row-major, `width * height`) so that they compose
+//! without conversions; borders are clamped.
+
+/// A grey plane, row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plane {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// `width * height` samples.
+    pub data: Vec<f32>,
+}
+
+impl Plane {
+    /// Sample at integer `(x, y)`, clamped to the border.
+    pub fn at(&self, x: isize, y: isize) -> f32 {
+        let x = x.clamp(0, self.width as isize - 1) as usize;
+        let y = y.clamp(0, self.height as isize - 1) as usize;
+        self.data[y * self.width + x]
+    }
+
+    /// Bilinear sample at `(x, y)`, pixel centres at integers.
+    pub fn bilinear(&self, x: f64, y: f64) -> f64 {
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as isize, y0 as isize);
+        let a = f64::from(self.at(x0, y0));
+        let b = f64::from(self.at(x0 + 1, y0));
+        let c = f64::from(self.at(x0, y0 + 1));
+        let d = f64::from(self.at(x0 + 1, y0 + 1));
+        (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
+    }
+}
+
+fn kernel(sigma: f64) -> Vec<f32> {
+    let radius = (3.0 * sigma).ceil().max(1.0) as isize;
+    let mut k: Vec<f32> = (-radius..=radius)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp() as f32)
+        .collect();
+    let sum: f32 = k.iter().sum();
+    k.iter_mut().for_each(|v| *v /= sum);
+    k
+}
+
+/// Separable Gaussian blur with standard deviation `sigma_px` (none if <= 0).
+pub fn gaussian_blur(plane: &Plane, sigma_px: f64) -> Plane {
+    if sigma_px <= 0.0 {
+        return plane.clone();
+    }
+    let k = kernel(sigma_px);
+    let r = (k.len() / 2) as isize;
+    let (w, h) = (plane.width, plane.height);
+    let mut tmp = vec![0.0f32; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            tmp[y * w + x] = k
+                .iter()
+                .enumerate()
+                .map(|(i, kv)| kv * plane.at(x as isize + i as isize - r, y as isize))
+                .sum();
+        }
+    }
+    let tmp = Plane {
+        width: w,
+        height: h,
+        data: tmp,
+    };
+    let mut out = vec![0.0f32; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            out[y * w + x] = k
+                .iter()
+                .enumerate()
+                .map(|(i, kv)| kv * tmp.at(x as isize, y as isize + i as isize - r))
+                .sum();
+        }
+    }
+    Plane {
+        width: w,
+        height: h,
+        data: out,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blur_keeps_constant_and_mass() {
+        let p = Plane {
+            width: 9,
+            height: 7,
+            data: vec![0.5; 63],
+        };
+        let b = gaussian_blur(&p, 1.3);
+        assert!(b.data.iter().all(|v| (v - 0.5).abs() < 1e-6));
+        let mut spike = vec![0.0; 21 * 21];
+        spike[10 * 21 + 10] = 1.0;
+        let p = Plane {
+            width: 21,
+            height: 21,
+            data: spike,
+        };
+        let b = gaussian_blur(&p, 1.0);
+        assert!((b.data.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+        assert!((b.bilinear(10.0, 10.0) - f64::from(b.at(10, 10))).abs() < 1e-9);
+    }
+
+    #[test]
+    fn bilinear_interpolates_a_ramp_exactly() {
+        let p = Plane {
+            width: 4,
+            height: 3,
+            data: (0..12)
+                .map(|i| (i % 4) as f32 + 10.0 * (i / 4) as f32)
+                .collect(),
+        };
+        assert!((p.bilinear(1.25, 0.5) - (1.25 + 5.0)).abs() < 1e-6);
+    }
+}
