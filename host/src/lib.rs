@@ -1,4 +1,13 @@
-//! The scanner's host library: from patterns and images to fused point clouds.
+//! The scanner's host library: from patterns and images to metric point clouds.
+//!
+//! ```text
+//! patterns (encode) --> projector ... camera --> io::images
+//!   --> phase (wrapped phase, modulation) --> unwrap (absolute phase)
+//!   --> triangulation (with calibration::RigCalibration) --> io::ply
+//! ```
 //!
 //! (Being written.)
 #![warn(missing_docs)]
+
+pub mod calibration;
+pub mod io;
