@@ -13,9 +13,11 @@
 pub mod board;
 pub mod bundle;
 pub mod detect;
+pub mod extrinsics;
 pub mod homography;
 pub mod lm;
 mod pinhole;
+pub mod projector;
 pub mod rig_file;
 pub mod rodrigues;
 pub mod synthetic;
