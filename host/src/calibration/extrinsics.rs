@@ -5,13 +5,14 @@
 //! pose together with every view's board pose in device A, minimising the
 //! reprojection error in both devices.
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector2, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Point2, Vector2, Vector3};
 
 use super::bundle::{rms_px, view_residuals};
+use super::homography::fit_homography;
 use super::lm::{difference_step, minimise, LeastSquaresProblem, LmError, LmOptions, LmReport};
 use super::rodrigues::{pose_from_rodrigues, rodrigues_from_rotation};
-use super::zhang::PlanarView;
-use super::{PinholeModel, Pose};
+use super::zhang::{pose_from_homography, PlanarView};
+use super::{Intrinsics, PinholeModel, Pose};
 
 /// Result of [`calibrate_pair`].
 #[derive(Debug, Clone, PartialEq)]
@@ -48,6 +49,39 @@ pub enum ExtrinsicsError {
     /// The refinement could not run.
     #[error("refinement failed: {0}")]
     Refine(#[from] LmError),
+    /// A board pose could not be found from a view (degenerate points).
+    #[error("no board pose from a view of {points} points")]
+    NoPose {
+        /// Points in the view.
+        points: usize,
+    },
+}
+
+/// Board pose in a calibrated device from one view (planar PnP): the
+/// homography from the board to undistorted normalised coordinates,
+/// decomposed. Good to start [`calibrate_pair`], which refines it.
+pub fn planar_pose(device: &PinholeModel, view: &PlanarView) -> Result<Pose, ExtrinsicsError> {
+    let no_pose = ExtrinsicsError::NoPose {
+        points: view.image_px.len(),
+    };
+    let mut from = Vec::with_capacity(view.image_px.len());
+    let mut to = Vec::with_capacity(view.image_px.len());
+    for (b, p) in view.board_m.iter().zip(&view.image_px) {
+        if let Some((x, y)) = device.pixel_to_normalised(p.x, p.y) {
+            from.push(*b);
+            to.push(Point2::new(x, y));
+        }
+    }
+    let h = fit_homography(&from, &to).map_err(|_| no_pose)?;
+    let unit = Intrinsics {
+        fx: 1.0,
+        fy: 1.0,
+        cx: 0.0,
+        cy: 0.0,
+    };
+    pose_from_homography(&unit, &h).ok_or(ExtrinsicsError::NoPose {
+        points: view.image_px.len(),
+    })
 }
 
 struct PairProblem<'a> {
@@ -222,7 +256,7 @@ pub fn calibrate_pair(
 mod tests {
     use super::*;
     use crate::calibration::rodrigues::rotation_angle_between;
-    use nalgebra::{Point2, Point3};
+    use nalgebra::Point3;
 
     fn observe(dev: &PinholeModel, pose: Pose, board: &[Point2<f64>]) -> PlanarView {
         let mut d = *dev;
@@ -266,6 +300,8 @@ mod tests {
         let pa: Vec<Pose> = poses.iter().map(|p| nudge.compose(p)).collect();
         let pb: Vec<Pose> = poses.iter().map(|p| truth.compose(p)).collect();
         let cal = calibrate_pair(&a, &b, &va, &vb, &pa, &pb, &LmOptions::default()).unwrap();
+        let pnp = planar_pose(&b, &vb[1]).unwrap();
+        assert!(rotation_angle_between(&pnp.rotation, &pb[1].rotation) < 1e-9);
         assert!(rotation_angle_between(&cal.a_to_b.rotation, &truth.rotation) < 1e-9);
         assert!((cal.a_to_b.translation_m - truth.translation_m).norm() < 1e-9);
         assert!(cal.rms_px < 1e-6, "{}", cal.rms_px);

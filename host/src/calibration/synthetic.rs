@@ -127,6 +127,32 @@ fn board_grey(board: &Checkerboard, s: &RenderSettings, p: Option<Point2<f64>>) 
     }
 }
 
+/// `n^2` sample offsets in the unit pixel on a rank-1 (Fibonacci-like)
+/// lattice: every sample has its own x and its own y, so an edge parallel to
+/// the pixel grid is resolved to `1/n^2` of a pixel, not `1/n` as on a
+/// square `n x n` grid (which biased corners of fronto-parallel boards by
+/// up to 1/(2n) px).
+fn subpixel_offsets(n: usize) -> Vec<(f64, f64)> {
+    let count = n * n;
+    let gcd = |mut a: usize, mut b: usize| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let mut step = ((count as f64 * 0.618).round() as usize).max(1);
+    while count > 1 && gcd(step, count) != 1 {
+        step += 1;
+    }
+    (0..count)
+        .map(|k| {
+            let fx = (k as f64 + 0.5) / count as f64;
+            let fy = ((k * step) % count) as f64 / count as f64 + 0.5 / count as f64;
+            (fx, fy)
+        })
+        .collect()
+}
+
 fn quantise(v: f64, depth: BitDepth) -> f32 {
     let m = depth.max_code();
     ((v.clamp(0.0, 1.0) * m).round() / m) as f32
@@ -140,7 +166,7 @@ pub fn render_checkerboard(
 ) -> GrayImage {
     let (w, h) = (camera.width_px as usize, camera.height_px as usize);
     let rays = corner_rays(camera);
-    let n = settings.supersample.max(1) as usize;
+    let offsets = subpixel_offsets(settings.supersample.max(1) as usize);
     let mut pixels: Vec<f32> = (0..w * h)
         .into_par_iter()
         .map(|k| {
@@ -152,18 +178,14 @@ pub fn render_checkerboard(
                 return settings.background as f32;
             };
             let mut sum = 0.0;
-            for sy in 0..n {
-                let fy = (sy as f64 + 0.5) / n as f64;
-                for sx in 0..n {
-                    let fx = (sx as f64 + 0.5) / n as f64;
-                    let x = (a.0 * (1.0 - fx) + b.0 * fx) * (1.0 - fy)
-                        + (cc.0 * (1.0 - fx) + d.0 * fx) * fy;
-                    let y = (a.1 * (1.0 - fx) + b.1 * fx) * (1.0 - fy)
-                        + (cc.1 * (1.0 - fx) + d.1 * fx) * fy;
-                    sum += board_grey(board, settings, hit_board(camera, x, y));
-                }
+            for &(fx, fy) in &offsets {
+                let x = (a.0 * (1.0 - fx) + b.0 * fx) * (1.0 - fy)
+                    + (cc.0 * (1.0 - fx) + d.0 * fx) * fy;
+                let y = (a.1 * (1.0 - fx) + b.1 * fx) * (1.0 - fy)
+                    + (cc.1 * (1.0 - fx) + d.1 * fx) * fy;
+                sum += board_grey(board, settings, hit_board(camera, x, y));
             }
-            (sum / (n * n) as f64) as f32
+            (sum / offsets.len() as f64) as f32
         })
         .collect();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(settings.seed);
@@ -282,6 +304,20 @@ mod tests {
         assert!(img
             .pixels()
             .all(|p| ((p[0] * 255.0).round() - p[0] * 255.0).abs() < 1e-3));
+    }
+
+    #[test]
+    fn subpixel_offsets_are_distinct_in_x_and_y() {
+        for n in [1, 2, 4, 5] {
+            let o = subpixel_offsets(n);
+            assert_eq!(o.len(), n * n);
+            let mut xs: Vec<u64> = o.iter().map(|p| (p.0 * 1e9) as u64).collect();
+            let mut ys: Vec<u64> = o.iter().map(|p| (p.1 * 1e9) as u64).collect();
+            xs.dedup();
+            ys.sort();
+            ys.dedup();
+            assert_eq!((xs.len(), ys.len()), (n * n, n * n), "n = {n}");
+        }
     }
 
     #[test]
