@@ -14,12 +14,14 @@ pub mod board;
 pub mod bundle;
 pub mod detect;
 pub mod extrinsics;
+pub mod head;
 pub mod homography;
 pub mod lm;
 mod pinhole;
 pub mod projector;
 pub mod rig_file;
 pub mod rodrigues;
+pub mod sim_head;
 pub mod synthetic;
 pub mod zhang;
 
