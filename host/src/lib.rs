@@ -11,3 +11,7 @@
 
 pub mod calibration;
 pub mod io;
+pub mod patterns;
+pub mod phase;
+pub mod raster;
+pub mod unwrap;
