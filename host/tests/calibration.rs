@@ -245,3 +245,80 @@ fn views_without_a_board_are_skipped_and_too_few_is_an_error() {
     .unwrap_err();
     assert!(matches!(err, HeadError::MissingPhase { .. }), "{err}");
 }
+
+/// `slscan calibrate --sim` writes a rig file that reads back, and the
+/// images and phase maps it saves calibrate again through `--images`.
+#[test]
+fn cli_sim_then_images_round_trip() {
+    let dir = std::env::temp_dir().join(format!("slscan-cal-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let exe = env!("CARGO_BIN_EXE_slscan");
+    let rig = dir.join("rig.json");
+    let views = dir.join("views");
+    let out = std::process::Command::new(exe)
+        .args([
+            "calibrate",
+            "--sim",
+            "--views",
+            "4",
+            "--bits",
+            "16",
+            "--out",
+        ])
+        .arg(&rig)
+        .arg("--save-images")
+        .arg(&views)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("PLACEHOLDER"), "{stderr}");
+    let sim_rig = slscan::calibration::read_rig(&rig).expect("valid rig file");
+    assert_eq!(sim_rig.heads[0].view_errors.len(), 4);
+
+    let rig2 = dir.join("rig2.json");
+    let out = std::process::Command::new(exe)
+        .args([
+            "calibrate",
+            "--projector",
+            "912x1140",
+            "--period-px",
+            "18",
+            "--images",
+        ])
+        .arg(&views)
+        .arg("--out")
+        .arg(&rig2)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let again = slscan::calibration::read_rig(&rig2).expect("valid rig file");
+    // 16-bit PNGs hold the renders to 1/65535: the same calibration results.
+    let (a, b) = (
+        &sim_rig.heads[0].camera.intrinsics,
+        &again.heads[0].camera.intrinsics,
+    );
+    assert!(
+        (a.fx - b.fx).abs() < 0.05 && (a.cy - b.cy).abs() < 0.05,
+        "{a:?} vs {b:?}"
+    );
+
+    // A wrong board size is a clear error, and no output file appears.
+    let bad = dir.join("bad.json");
+    let out = std::process::Command::new(exe)
+        .args(["calibrate", "--cols", "10", "--images"])
+        .arg(&views)
+        .arg("--out")
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("expected 10x6 inner corners"));
+    assert!(!bad.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

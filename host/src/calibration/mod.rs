@@ -18,6 +18,7 @@ pub mod head;
 pub mod homography;
 pub mod lm;
 mod pinhole;
+pub mod phase_file;
 pub mod projector;
 pub mod rig_file;
 pub mod rodrigues;
