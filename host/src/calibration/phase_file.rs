@@ -146,7 +146,7 @@ pub fn write_phase_map(path: &Path, map: &GrayImage) -> Result<(), PhaseFileErro
         map.width()
     );
     // Pad so that magic + version + length + header is a multiple of 64.
-    while (10 + header.len() + 1) % 64 != 0 {
+    while !(10 + header.len() + 1).is_multiple_of(64) {
         header.push(' ');
     }
     header.push('\n');
@@ -195,7 +195,7 @@ mod tests {
     #[test]
     fn reads_f64_and_rejects_bad_files() {
         let mut header = "{'descr': '<f8', 'fortran_order': False, 'shape': (1, 2), }".to_string();
-        while (10 + header.len() + 1) % 64 != 0 {
+        while !(10 + header.len() + 1).is_multiple_of(64) {
             header.push(' ');
         }
         header.push('\n');
