@@ -66,6 +66,33 @@ fn corner_detection_is_subpixel_on_8_and_16_bit_renders() {
     }
 }
 
+/// Conditions of a real lab: lens blur, vignetting, low exposure, clutter.
+#[test]
+fn corner_detection_survives_blur_vignetting_low_exposure_and_clutter() {
+    let sim = SimHead::standard(4);
+    for (depth, light, noise) in [
+        (BitDepth::Sixteen, 0.2, 0.003),
+        (BitDepth::Eight, 0.5, 0.01),
+    ] {
+        let settings = RenderSettings {
+            bit_depth: depth,
+            dark: 0.1 * light,
+            light,
+            background: 0.5 * light,
+            noise_sigma: noise,
+            psf_sigma_px: 1.2,
+            vignetting: 0.5,
+            clutter_rects: 25,
+            ..RenderSettings::default()
+        };
+        let rms = detection_rms(&sim, &settings);
+        eprintln!(
+            "detection, {depth:?} light {light} noise {noise} + blur 1.2 px, vignetting 0.5, 25 clutter rects: RMS {rms:.4} px"
+        );
+        assert!(rms < 0.06, "{rms}");
+    }
+}
+
 #[test]
 fn head_calibration_recovers_the_simulated_truth() {
     let sim = SimHead::standard(10);

@@ -55,6 +55,12 @@ pub struct RenderSettings {
     pub bit_depth: BitDepth,
     /// Seed of the noise.
     pub seed: u64,
+    /// Lens blur after pixel integration: Gaussian sigma, pixels (0 = none).
+    pub psf_sigma_px: f64,
+    /// Vignetting: grey falls by this fraction at the image corners (r^2 law).
+    pub vignetting: f64,
+    /// Random grey rectangles behind the board, as a cluttered lab would be.
+    pub clutter_rects: usize,
 }
 
 impl Default for RenderSettings {
@@ -68,6 +74,9 @@ impl Default for RenderSettings {
             noise_sigma: 0.01,
             bit_depth: BitDepth::Eight,
             seed: 1,
+            psf_sigma_px: 0.0,
+            vignetting: 0.0,
+            clutter_rects: 0,
         }
     }
 }
@@ -101,13 +110,12 @@ fn hit_board(camera: &PinholeModel, x: f64, y: f64) -> Option<Point2<f64>> {
     Some(Point2::new(p.x, p.y))
 }
 
-fn board_grey(board: &Checkerboard, s: &RenderSettings, p: Option<Point2<f64>>) -> f64 {
-    let Some(p) = p else {
-        return s.background;
-    };
+/// Grey of the board at `p`; `None` off the board (background shows).
+fn board_grey(board: &Checkerboard, s: &RenderSettings, p: Option<Point2<f64>>) -> Option<f64> {
+    let p = p?;
     match board.is_dark(p.x, p.y) {
-        Some(true) => s.dark,
-        Some(false) => s.light,
+        Some(true) => Some(s.dark),
+        Some(false) => Some(s.light),
         None => {
             let m = s.margin_squares * board.square_m;
             let (x1, y1) = (
@@ -118,13 +126,58 @@ fn board_grey(board: &Checkerboard, s: &RenderSettings, p: Option<Point2<f64>>) 
                 && p.x <= x1 + m
                 && p.y >= -board.square_m - m
                 && p.y <= y1 + m;
-            if on_margin {
-                s.light
-            } else {
-                s.background
-            }
+            on_margin.then_some(s.light)
         }
     }
+}
+
+/// Rectangles `(x0, y0, x1, y1, grey)` of background clutter.
+fn clutter_rects(s: &RenderSettings, w: usize, h: usize) -> Vec<(usize, usize, usize, usize, f64)> {
+    use rand::Rng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(s.seed ^ 0x00c1_077e);
+    (0..s.clutter_rects)
+        .map(|_| {
+            let (x0, y0) = (rng.random_range(0..w), rng.random_range(0..h));
+            let (rw, rh) = (
+                rng.random_range(5..w / 4 + 6),
+                rng.random_range(5..h / 4 + 6),
+            );
+            (
+                x0,
+                y0,
+                (x0 + rw).min(w),
+                (y0 + rh).min(h),
+                rng.random_range(0.0..1.0),
+            )
+        })
+        .collect()
+}
+
+/// Lens blur and vignetting of the integrated image.
+fn lens_and_vignetting(pixels: Vec<f32>, w: usize, h: usize, s: &RenderSettings) -> Vec<f32> {
+    use crate::calibration::detect::filter::{gaussian_blur, Plane};
+    let plane = gaussian_blur(
+        &Plane {
+            width: w,
+            height: h,
+            data: pixels,
+        },
+        s.psf_sigma_px,
+    );
+    if s.vignetting == 0.0 {
+        return plane.data;
+    }
+    let (cx, cy) = (0.5 * (w as f64 - 1.0), 0.5 * (h as f64 - 1.0));
+    let r2_max = cx * cx + cy * cy;
+    plane
+        .data
+        .iter()
+        .enumerate()
+        .map(|(k, v)| {
+            let (x, y) = ((k % w) as f64 - cx, (k / w) as f64 - cy);
+            (f64::from(*v) * (1.0 - s.vignetting * (x * x + y * y) / r2_max)) as f32
+        })
+        .collect()
 }
 
 /// `n^2` sample offsets in the unit pixel on a rank-1 (Fibonacci-like)
@@ -167,7 +220,15 @@ pub fn render_checkerboard(
     let (w, h) = (camera.width_px as usize, camera.height_px as usize);
     let rays = corner_rays(camera);
     let offsets = subpixel_offsets(settings.supersample.max(1) as usize);
-    let mut pixels: Vec<f32> = (0..w * h)
+    let clutter = clutter_rects(settings, w, h);
+    let background = |u: usize, v: usize| {
+        clutter
+            .iter()
+            .rev()
+            .find(|r| u >= r.0 && u < r.2 && v >= r.1 && v < r.3)
+            .map_or(settings.background, |r| r.4)
+    };
+    let pixels: Vec<f32> = (0..w * h)
         .into_par_iter()
         .map(|k| {
             let (u, v) = (k % w, k / w);
@@ -175,7 +236,7 @@ pub fn render_checkerboard(
             let (Some(a), Some(b), Some(cc), Some(d)) =
                 (c(u, v), c(u + 1, v), c(u, v + 1), c(u + 1, v + 1))
             else {
-                return settings.background as f32;
+                return background(u, v) as f32;
             };
             let mut sum = 0.0;
             for &(fx, fy) in &offsets {
@@ -183,11 +244,13 @@ pub fn render_checkerboard(
                     + (cc.0 * (1.0 - fx) + d.0 * fx) * fy;
                 let y = (a.1 * (1.0 - fx) + b.1 * fx) * (1.0 - fy)
                     + (cc.1 * (1.0 - fx) + d.1 * fx) * fy;
-                sum += board_grey(board, settings, hit_board(camera, x, y));
+                sum += board_grey(board, settings, hit_board(camera, x, y))
+                    .unwrap_or_else(|| background(u, v));
             }
             (sum / offsets.len() as f64) as f32
         })
         .collect();
+    let mut pixels = lens_and_vignetting(pixels, w, h, settings);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(settings.seed);
     let noise = Normal::new(0.0, settings.noise_sigma.max(0.0)).ok();
     for p in &mut pixels {
@@ -304,6 +367,43 @@ mod tests {
         assert!(img
             .pixels()
             .all(|p| ((p[0] * 255.0).round() - p[0] * 255.0).abs() < 1e-3));
+    }
+
+    #[test]
+    fn clutter_blur_and_vignetting_change_the_image() {
+        let (cam, board) = scene();
+        let plain = RenderSettings {
+            noise_sigma: 0.0,
+            ..Default::default()
+        };
+        let base = render_checkerboard(&cam, &board, &plain);
+        let cluttered = render_checkerboard(
+            &cam,
+            &board,
+            &RenderSettings {
+                clutter_rects: 10,
+                ..plain
+            },
+        );
+        let changed = base
+            .as_raw()
+            .iter()
+            .zip(cluttered.as_raw())
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(changed > 100, "{changed} pixels changed");
+        let vignetted = render_checkerboard(
+            &cam,
+            &board,
+            &RenderSettings {
+                vignetting: 0.5,
+                psf_sigma_px: 1.0,
+                ..plain
+            },
+        );
+        // Corner pixel (background) darkened by half.
+        let (a, b) = (base.get_pixel(0, 0)[0], vignetted.get_pixel(0, 0)[0]);
+        assert!((f64::from(b) - 0.5 * f64::from(a)).abs() < 0.01, "{a} {b}");
     }
 
     #[test]

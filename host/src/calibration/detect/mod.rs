@@ -91,7 +91,8 @@ pub struct DetectOptions {
     /// Smoothing before the saddle response, pixels (about a fifth of the
     /// smallest square side works; 1.5 suits squares of 10..200 px).
     pub blur_sigma_px: f64,
-    /// Candidates weaker than this fraction of the strongest are dropped.
+    /// Corner candidates (X-junctions) weaker than this fraction of the
+    /// strongest are dropped.
     pub min_response_fraction: f32,
     /// Seeds tried for grid growth, strongest candidates first.
     pub max_seeds: usize,
@@ -155,20 +156,30 @@ pub fn detect_checkerboard(
     let radius = (2.0 * options.blur_sigma_px).ceil().max(2.0) as usize;
     let ring_px = (3.0 * options.blur_sigma_px + 1.0).max(3.0);
     let border = radius.max(ring_px.ceil() as usize) + 1;
-    let max_candidates = 4 * board.corner_count() + 100;
-    let candidates = saddle::local_maxima(
+    // Maxima down to 1% of the strongest saddle, then only X-junctions, and
+    // the response threshold relative to the strongest X-junction: a
+    // high-contrast saddle in the background (an L-corner, a T-junction)
+    // must not push the board's corners under the threshold.
+    let all = saddle::local_maxima(
         &response,
         raw.width,
         raw.height,
         radius,
-        options.min_response_fraction,
+        0.01,
         border,
-        max_candidates,
+        usize::MAX,
     );
-    let points: Vec<Point2<f64>> = candidates
+    let crossings: Vec<&saddle::Candidate> = all
         .iter()
+        .filter(|c| saddle::is_x_junction(&smooth, &c.position, ring_px))
+        .collect();
+    let strongest = crossings.first().map_or(0.0, |c| c.response);
+    let max_candidates = 4 * board.corner_count() + 100;
+    let points: Vec<Point2<f64>> = crossings
+        .iter()
+        .filter(|c| c.response >= f64::from(options.min_response_fraction) * strongest)
+        .take(max_candidates)
         .map(|c| c.position)
-        .filter(|p| saddle::is_x_junction(&smooth, p, ring_px))
         .collect();
     let mut largest = (0usize, 0usize);
     let mut coarse = None;
