@@ -324,4 +324,35 @@ mod tests {
             Err(DetectError::NonFinitePixels { count: 1 })
         ));
     }
+
+    #[test]
+    fn loads_8_and_16_bit_png_and_tiff_as_unit_grey() {
+        let dir = std::env::temp_dir().join(format!("slscan-load-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let img16 =
+            image::ImageBuffer::from_fn(7, 5, |x, y| image::Luma([(x * 9000 + y * 700) as u16]));
+        let img8 = image::ImageBuffer::from_fn(7, 5, |x, y| image::Luma([(x * 30 + y) as u8]));
+        for (name, dynamic) in [
+            ("a.tiff", image::DynamicImage::ImageLuma16(img16.clone())),
+            ("a.png", image::DynamicImage::ImageLuma16(img16.clone())),
+            ("b.png", image::DynamicImage::ImageLuma8(img8.clone())),
+            ("b.tif", image::DynamicImage::ImageLuma8(img8.clone())),
+        ] {
+            let path = dir.join(name);
+            dynamic.save(&path).unwrap();
+            let g = load_gray(&path).unwrap();
+            let (x, y) = (5, 3);
+            let want = if name.starts_with('a') {
+                f32::from(img16.get_pixel(x, y)[0]) / 65535.0
+            } else {
+                f32::from(img8.get_pixel(x, y)[0]) / 255.0
+            };
+            assert!((g.get_pixel(x, y)[0] - want).abs() < 1e-6, "{name}");
+        }
+        assert!(matches!(
+            load_gray(&dir.join("missing.png")),
+            Err(DetectError::Load { .. })
+        ));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
