@@ -10,8 +10,13 @@
 #![warn(missing_docs)]
 
 pub mod calibration;
+pub mod fit;
 pub mod io;
 pub mod patterns;
 pub mod phase;
+pub mod point_cloud;
 pub mod raster;
+pub mod reconstruct;
+pub mod synth;
+pub mod triangulation;
 pub mod unwrap;

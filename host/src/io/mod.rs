@@ -3,6 +3,10 @@
 //! Every writer goes through [`write_atomically`], so a failed write never leaves a
 //! partial output file behind.
 
+pub mod images;
+pub mod npy;
+pub mod ply;
+
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 

@@ -29,6 +29,9 @@ pub struct Heterodyne {
     /// Lowest phase the top beat takes over the field, radians.
     top_floor_rad: f32,
     max_residual_rad: f32,
+    /// Largest standard deviation of a rounding estimate, in units of the (common)
+    /// wrapped-phase noise: see [`Heterodyne::order_noise_gain`].
+    order_noise_gain: f64,
 }
 
 impl Heterodyne {
@@ -85,17 +88,51 @@ impl Heterodyne {
         } else {
             tau * top * (range_px + margin_px)
         };
-        let ratios = chain_freq
+        let ratios: Vec<f32> = chain_freq
             .windows(2)
             .map(|w| (w[0] / w[1]) as f32)
             .collect();
+        // Track node 0 of each level as a combination of the input phases, so the noise of
+        // every rounding estimate `ratio * Phi_(l+1) - phi_l` is known exactly.
+        let mut nodes: Vec<Vec<f64>> = (0..k)
+            .map(|j| (0..k).map(|i| f64::from(u8::from(i == j))).collect())
+            .collect();
+        let mut chain_coef = vec![nodes[0].clone()];
+        while nodes.len() > 1 {
+            nodes = nodes
+                .windows(2)
+                .map(|w| w[0].iter().zip(&w[1]).map(|(a, b)| a - b).collect())
+                .collect();
+            chain_coef.push(nodes[0].clone());
+        }
+        let order_noise_gain = (0..k - 1)
+            .map(|l| {
+                let r = f64::from(ratios[l]);
+                chain_coef[l + 1]
+                    .iter()
+                    .zip(&chain_coef[l])
+                    .map(|(up, here)| (r * up - here).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .fold(0.0, f64::max);
         Ok(Self {
             periods_px: periods_px.to_vec(),
             chain_freq,
             ratios,
             top_floor_rad: top_floor_rad as f32,
             max_residual_rad: max_residual_rad as f32,
+            order_noise_gain,
         })
+    }
+
+    /// Standard deviation of the worst rounding estimate per unit of wrapped-phase noise
+    /// (all periods equally noisy). A pixel with phase noise `sigma` miscounts an order
+    /// with probability about `P(|N(0,1)| > pi / (gain * sigma))`; the residual check
+    /// cannot see such errors, so callers reject pixels whose `gain * sigma` is too large
+    /// (see [`crate::reconstruct::ReconstructConfig::order_sigmas`]).
+    pub fn order_noise_gain(&self) -> f64 {
+        self.order_noise_gain
     }
 
     /// The periods, projector pixels.
@@ -233,6 +270,18 @@ mod tests {
         let counts = [s + s.sqrt() + 1.0, s, s - s.sqrt()];
         let periods: Vec<f64> = counts.iter().map(|c| w / c).collect();
         check_exact(&periods, w); // seed 004 three-pitch
+    }
+
+    #[test]
+    fn order_noise_gain_matches_hand_derivation() {
+        // 2 periods: estimate = r (e0 - e1) - e0 -> sqrt((r - 1)^2 + r^2), r = P1/(P1 - P0)...
+        let h = Heterodyne::new(&[20.0, 22.0], 200.0, 1.0).unwrap();
+        let r = 11.0f64; // beat 220 px / 20 px
+        assert!((h.order_noise_gain() - ((r - 1.0).powi(2) + r * r).sqrt()).abs() < 1e-4);
+        // 3 periods 20/22/24: level 1 gives (r-1, -(2r-1), r) with r = 1320/220 = 6.
+        let h = Heterodyne::new(&[20.0, 22.0, 24.0], 900.0, 1.0).unwrap();
+        let top = (25.0f64 + 121.0 + 36.0).sqrt();
+        assert!((h.order_noise_gain() - top.max(221.0f64.sqrt())).abs() < 1e-3);
     }
 
     #[test]
