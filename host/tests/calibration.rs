@@ -6,14 +6,17 @@
 //! Run with `--nocapture` to see the measured errors.
 
 use nalgebra::{Point3, Vector3};
-use slscan::calibration::board::Checkerboard;
+use slscan::calibration::board::{Checkerboard, CircleGrid, Target};
 use slscan::calibration::detect::{detect_checkerboard, DetectOptions};
 use slscan::calibration::head::{
-    calibrate_camera_stage, calibrate_head, calibrate_head_to_head, HeadError, HeadOptions,
+    calibrate_camera_stage, calibrate_head, calibrate_head_to_head, BoardCapture, HeadError,
+    HeadOptions,
 };
 use slscan::calibration::rodrigues::{pose_from_rodrigues, rotation_angle_between};
 use slscan::calibration::sim_head::SimHead;
-use slscan::calibration::synthetic::{render_checkerboard, true_corners, BitDepth, RenderSettings};
+use slscan::calibration::synthetic::{
+    render_checkerboard, render_circle_grid, true_corners, BitDepth, RenderSettings,
+};
 use slscan::calibration::{Intrinsics, PinholeModel};
 
 fn rel(a: f64, b: f64) -> f64 {
@@ -99,7 +102,7 @@ fn head_calibration_recovers_the_simulated_truth() {
     let captures = sim.render(&RenderSettings::default(), true);
     let cal = calibrate_head(
         "A",
-        &sim.board,
+        &Target::Checkerboard(sim.board),
         &captures,
         &sim.projector_spec(),
         &HeadOptions::default(),
@@ -186,6 +189,54 @@ fn head_calibration_recovers_the_simulated_truth() {
         .all(|e| e.camera_rms_px < 0.1 && e.projector_rms_px.is_some_and(|p| p < 0.3)));
 }
 
+/// The camera from a symmetric circle grid (9x6 circles, 25 mm apart,
+/// 10 mm across) in the same poses; reports the ellipse-centre bias.
+#[test]
+fn camera_calibration_from_a_circle_grid() {
+    let sim = SimHead::standard(10);
+    let grid = CircleGrid {
+        cols: 9,
+        rows: 6,
+        spacing_m: 0.025,
+        diameter_m: 0.010,
+    };
+    let captures: Vec<BoardCapture> = (0..sim.board_poses.len())
+        .map(|v| BoardCapture {
+            name: format!("view_{v:02}"),
+            image: render_circle_grid(&sim.camera_at(v), &grid, &RenderSettings::default()),
+            phase: None,
+        })
+        .collect();
+    let target = Target::CircleGrid(grid);
+    let stage = calibrate_camera_stage(&target, &captures, &HeadOptions::default())
+        .expect("circle grid calibrates");
+    assert!(stage.skipped.is_empty(), "{:?}", stage.skipped);
+    let (mut sum, mut n) = (0.0, 0);
+    for (v, centres) in stage.corners_px.iter().enumerate() {
+        let cam = sim.camera_at(v);
+        for (f, c) in centres.iter().zip(grid.centres_m()) {
+            let t = cam.project(&Point3::new(c.x, c.y, 0.0)).unwrap();
+            sum += (f.coords - t).norm_squared();
+            n += 1;
+        }
+    }
+    let k = stage.camera.intrinsics;
+    eprintln!(
+        "circle grid: centre vs true projected centre RMS {:.4} px; fx {:.3} fy {:.3} cx {:.3} cy {:.3}; rms {:.4} px",
+        (sum / n as f64).sqrt(),
+        k.fx,
+        k.fy,
+        k.cx,
+        k.cy,
+        stage.calibration.rms_px
+    );
+    assert!(rel(k.fx, 620.0) < 3e-3 && rel(k.fy, 615.0) < 3e-3, "{k:?}");
+    assert!(
+        (k.cx - 322.5).abs() < 2.0 && (k.cy - 241.0).abs() < 2.0,
+        "{k:?}"
+    );
+}
+
 #[test]
 fn head_to_head_from_one_shared_view() {
     let sim = SimHead::standard(1);
@@ -223,7 +274,7 @@ fn head_to_head_from_one_shared_view() {
     let pair = calibrate_head_to_head(
         &cam0,
         &cam1,
-        &board,
+        &Target::Checkerboard(board),
         &[(img0, img1)],
         &HeadOptions::default(),
     )
@@ -245,12 +296,21 @@ fn views_without_a_board_are_skipped_and_too_few_is_an_error() {
     let mut captures = sim.render(&RenderSettings::default(), false);
     captures[1].image =
         slscan::calibration::board::GrayImage::from_pixel(640, 480, image::Luma([0.4]));
-    let stage = calibrate_camera_stage(&sim.board, &captures, &HeadOptions::default())
-        .expect("3 views left");
+    let stage = calibrate_camera_stage(
+        &Target::Checkerboard(sim.board),
+        &captures,
+        &HeadOptions::default(),
+    )
+    .expect("3 views left");
     assert_eq!(stage.skipped.len(), 1);
     assert_eq!(stage.names, ["view_00", "view_02", "view_03"]);
     captures[2].image = captures[1].image.clone();
-    let err = calibrate_camera_stage(&sim.board, &captures, &HeadOptions::default()).unwrap_err();
+    let err = calibrate_camera_stage(
+        &Target::Checkerboard(sim.board),
+        &captures,
+        &HeadOptions::default(),
+    )
+    .unwrap_err();
     assert!(
         matches!(
             err,
@@ -264,7 +324,7 @@ fn views_without_a_board_are_skipped_and_too_few_is_an_error() {
     );
     let err = calibrate_head(
         "A",
-        &sim.board,
+        &Target::Checkerboard(sim.board),
         &sim.render(&RenderSettings::default(), false),
         &sim.projector_spec(),
         &HeadOptions::default(),

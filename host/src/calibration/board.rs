@@ -56,6 +56,54 @@ impl Checkerboard {
     }
 }
 
+/// A symmetric grid of `cols x rows` dark circles on a light plate, centres
+/// `spacing_m` apart. Board frame as [`Checkerboard`]'s, with circle
+/// `(i, j)` at `(i * spacing_m, j * spacing_m, 0)`, listed row by row. The
+/// grid looks the same turned by 180 degrees, so the detector takes the
+/// circle nearest the image's top-left as `(0, 0)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CircleGrid {
+    /// Circles along the board's x axis.
+    pub cols: usize,
+    /// Circles along the board's y axis.
+    pub rows: usize,
+    /// Centre-to-centre distance, metres.
+    pub spacing_m: f64,
+    /// Circle diameter, metres.
+    pub diameter_m: f64,
+}
+
+impl CircleGrid {
+    /// Circle centres in the board plane, row by row, metres.
+    pub fn centres_m(&self) -> Vec<Point2<f64>> {
+        (0..self.rows)
+            .flat_map(|j| {
+                (0..self.cols)
+                    .map(move |i| Point2::new(i as f64 * self.spacing_m, j as f64 * self.spacing_m))
+            })
+            .collect()
+    }
+}
+
+/// The calibration targets the detector knows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    /// A checkerboard (inner corners).
+    Checkerboard(Checkerboard),
+    /// A symmetric circle grid (circle centres).
+    CircleGrid(CircleGrid),
+}
+
+impl Target {
+    /// The target's feature points in its plane, row by row, metres.
+    pub fn points_m(&self) -> Vec<Point2<f64>> {
+        match self {
+            Target::Checkerboard(b) => b.corners_m(),
+            Target::CircleGrid(g) => g.centres_m(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

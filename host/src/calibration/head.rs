@@ -14,11 +14,11 @@
 
 use nalgebra::Point2;
 
-use super::board::{Checkerboard, GrayImage};
+use super::board::{GrayImage, Target};
 use super::bundle::{
     calibrate_camera, CalibrateError, CameraCalibration, CameraCalibrationOptions,
 };
-use super::detect::{detect_checkerboard, DetectError, DetectOptions};
+use super::detect::{detect_target, DetectError, DetectOptions};
 use super::extrinsics::{calibrate_pair, planar_pose, ExtrinsicsError, PairCalibration};
 use super::lm::LmOptions;
 use super::projector::{calibrate_projector, PhaseMaps, ProjectorError};
@@ -161,9 +161,9 @@ pub struct HeadCalibration {
 /// Minimum views for a calibration with distortion.
 pub const MIN_VIEWS: usize = 3;
 
-/// Detects the board in every capture and calibrates the camera.
+/// Detects the target in every capture and calibrates the camera.
 pub fn calibrate_camera_stage(
-    board: &Checkerboard,
+    target: &Target,
     captures: &[BoardCapture],
     options: &HeadOptions,
 ) -> Result<CameraStage, HeadError> {
@@ -190,7 +190,7 @@ pub fn calibrate_camera_stage(
                 expected_height: size.1,
             });
         }
-        match detect_checkerboard(&c.image, board, &options.detect) {
+        match detect_target(&c.image, target, &options.detect) {
             Ok(corners) => {
                 names.push(c.name.clone());
                 corners_px.push(corners);
@@ -211,7 +211,7 @@ pub fn calibrate_camera_stage(
                 .map_or_else(|| "none".into(), |(n, e)| format!("{n}: {e}")),
         });
     }
-    let board_m = board.corners_m();
+    let board_m = target.points_m();
     let views: Vec<PlanarView> = corners_px
         .iter()
         .map(|c| PlanarView {
@@ -240,12 +240,12 @@ pub fn calibrate_camera_stage(
 /// and the camera -> projector pose.
 pub fn calibrate_head(
     name: &str,
-    board: &Checkerboard,
+    target: &Target,
     captures: &[BoardCapture],
     projector: &ProjectorSpec,
     options: &HeadOptions,
 ) -> Result<HeadCalibration, HeadError> {
-    let stage = calibrate_camera_stage(board, captures, options)?;
+    let stage = calibrate_camera_stage(target, captures, options)?;
     let mut maps = Vec::with_capacity(stage.names.len());
     for view in &stage.names {
         let capture = captures.iter().find(|c| &c.name == view);
@@ -258,7 +258,7 @@ pub fn calibrate_head(
             period_px: projector.period_px,
         });
     }
-    let board_m = board.corners_m();
+    let board_m = target.points_m();
     let (proj_cal, proj_views) = calibrate_projector(
         &board_m,
         &stage.corners_px,
@@ -324,16 +324,16 @@ pub fn calibrate_head(
 pub fn calibrate_head_to_head(
     camera0: &PinholeModel,
     camera1: &PinholeModel,
-    board: &Checkerboard,
+    target: &Target,
     shared: &[(GrayImage, GrayImage)],
     options: &HeadOptions,
 ) -> Result<PairCalibration, HeadError> {
-    let board_m = board.corners_m();
+    let board_m = target.points_m();
     let mut views = [Vec::new(), Vec::new()];
     let mut poses = [Vec::new(), Vec::new()];
     for (img0, img1) in shared {
         for (head, (img, cam)) in [(img0, camera0), (img1, camera1)].into_iter().enumerate() {
-            let corners = detect_checkerboard(img, board, &options.detect)
+            let corners = detect_target(img, target, &options.detect)
                 .map_err(|source| HeadError::SharedView { head, source })?;
             let view = PlanarView {
                 board_m: board_m.clone(),

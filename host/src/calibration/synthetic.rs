@@ -14,7 +14,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 
-use super::board::{Checkerboard, GrayImage};
+use super::board::{Checkerboard, CircleGrid, GrayImage};
 use super::PinholeModel;
 
 /// Sensor bit depth of a rendered view.
@@ -217,6 +217,50 @@ pub fn render_checkerboard(
     board: &Checkerboard,
     settings: &RenderSettings,
 ) -> GrayImage {
+    render_planar(camera, settings, |p| board_grey(board, settings, p))
+}
+
+/// Renders a symmetric grid of dark circles on a light plate (see
+/// [`CircleGrid`]) seen by `camera`, whose pose maps board -> camera.
+pub fn render_circle_grid(
+    camera: &PinholeModel,
+    grid: &CircleGrid,
+    settings: &RenderSettings,
+) -> GrayImage {
+    let margin = grid.spacing_m * settings.margin_squares;
+    let (x1, y1) = (
+        (grid.cols - 1) as f64 * grid.spacing_m + margin,
+        (grid.rows - 1) as f64 * grid.spacing_m + margin,
+    );
+    let r = 0.5 * grid.diameter_m;
+    render_planar(camera, settings, |p| {
+        let p = p?;
+        if p.x < -margin || p.y < -margin || p.x > x1 || p.y > y1 {
+            return None;
+        }
+        // Nearest circle centre.
+        let i = (p.x / grid.spacing_m)
+            .round()
+            .clamp(0.0, (grid.cols - 1) as f64);
+        let j = (p.y / grid.spacing_m)
+            .round()
+            .clamp(0.0, (grid.rows - 1) as f64);
+        let (dx, dy) = (p.x - i * grid.spacing_m, p.y - j * grid.spacing_m);
+        Some(if dx * dx + dy * dy <= r * r {
+            settings.dark
+        } else {
+            settings.light
+        })
+    })
+}
+
+/// Renders a planar target whose grey at a board point is `grey` (`None`
+/// off the target, where the background shows).
+fn render_planar(
+    camera: &PinholeModel,
+    settings: &RenderSettings,
+    grey: impl Fn(Option<Point2<f64>>) -> Option<f64> + Sync,
+) -> GrayImage {
     let (w, h) = (camera.width_px as usize, camera.height_px as usize);
     let rays = corner_rays(camera);
     let offsets = subpixel_offsets(settings.supersample.max(1) as usize);
@@ -244,8 +288,7 @@ pub fn render_checkerboard(
                     + (cc.0 * (1.0 - fx) + d.0 * fx) * fy;
                 let y = (a.1 * (1.0 - fx) + b.1 * fx) * (1.0 - fy)
                     + (cc.1 * (1.0 - fx) + d.1 * fx) * fy;
-                sum += board_grey(board, settings, hit_board(camera, x, y))
-                    .unwrap_or_else(|| background(u, v));
+                sum += grey(hit_board(camera, x, y)).unwrap_or_else(|| background(u, v));
             }
             (sum / offsets.len() as f64) as f32
         })

@@ -9,6 +9,7 @@
 //! Images are grey f32 in [0, 1] (see [`crate::calibration::board::GrayImage`]);
 //! load 8- or 16-bit PNG/TIFF with [`load_gray`].
 
+pub mod circles;
 pub mod filter;
 pub mod grid;
 pub mod saddle;
@@ -18,7 +19,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Point2;
 
-use super::board::{Checkerboard, GrayImage};
+use super::board::{Checkerboard, GrayImage, Target};
 use filter::{gaussian_blur, Plane};
 
 /// Errors of checkerboard detection.
@@ -118,6 +119,35 @@ pub fn load_gray(path: &Path) -> Result<GrayImage, DetectError> {
         })
 }
 
+/// Finds the target's feature points (checkerboard corners or circle
+/// centres) in board order.
+pub fn detect_target(
+    image: &GrayImage,
+    target: &Target,
+    options: &DetectOptions,
+) -> Result<Vec<Point2<f64>>, DetectError> {
+    match target {
+        Target::Checkerboard(b) => detect_checkerboard(image, b, options),
+        Target::CircleGrid(g) => circles::detect_circle_grid(image, g),
+    }
+}
+
+/// The image checks every detector makes: size and finite samples.
+fn check_image(image: &GrayImage) -> Result<(), DetectError> {
+    let (w, h) = image.dimensions();
+    if w < 16 || h < 16 {
+        return Err(DetectError::ImageTooSmall {
+            width: w,
+            height: h,
+        });
+    }
+    let bad = image.as_raw().iter().filter(|v| !v.is_finite()).count();
+    if bad > 0 {
+        return Err(DetectError::NonFinitePixels { count: bad });
+    }
+    Ok(())
+}
+
 fn plane_of(image: &GrayImage) -> Plane {
     Plane {
         width: image.width() as usize,
@@ -139,17 +169,7 @@ pub fn detect_checkerboard(
             rows: board.rows,
         });
     }
-    let (w, h) = image.dimensions();
-    if w < 16 || h < 16 {
-        return Err(DetectError::ImageTooSmall {
-            width: w,
-            height: h,
-        });
-    }
-    let bad = image.as_raw().iter().filter(|v| !v.is_finite()).count();
-    if bad > 0 {
-        return Err(DetectError::NonFinitePixels { count: bad });
-    }
+    check_image(image)?;
     let raw = plane_of(image);
     let smooth = gaussian_blur(&raw, options.blur_sigma_px);
     let response = saddle::saddle_response(&smooth);
@@ -190,7 +210,7 @@ pub fn detect_checkerboard(
         if grown.width * grown.height > largest.0 * largest.1 {
             largest = (grown.width, grown.height);
         }
-        if let Some(ordered) = grid::orient(&grown, board.cols, board.rows, &smooth) {
+        if let Some(ordered) = grid::orient(&grown, board.cols, board.rows, Some(&smooth)) {
             coarse = Some(ordered);
             break;
         }

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use serde::Serialize;
-use slscan::calibration::board::{Checkerboard, GrayImage};
+use slscan::calibration::board::{Checkerboard, CircleGrid, GrayImage, Target};
 use slscan::calibration::bundle::CameraCalibrationOptions;
 use slscan::calibration::detect::load_gray;
 use slscan::calibration::head::{
@@ -39,13 +39,16 @@ pub struct Args {
     /// Output JSON: a rig file (head calibrated) or a camera file (camera only).
     #[arg(long, short, value_name = "FILE")]
     out: PathBuf,
-    /// Inner corners along the board's long side (ignored with --sim).
+    /// Calibration target in the images (ignored with --sim, which shows a checkerboard).
+    #[arg(long, value_enum, default_value_t = TargetKind::Checkerboard)]
+    target: TargetKind,
+    /// Inner corners (or circles) along the board's x axis (ignored with --sim).
     #[arg(long, default_value_t = 9)]
     cols: usize,
-    /// Inner corners along the board's short side (ignored with --sim).
+    /// Inner corners (or circles) along the board's y axis (ignored with --sim).
     #[arg(long, default_value_t = 6)]
     rows: usize,
-    /// Side of one board square, millimetres (ignored with --sim).
+    /// Side of one square, or circle centre spacing, millimetres (ignored with --sim).
     #[arg(long, default_value_t = 25.0)]
     square_mm: f64,
     /// Projector DMD size as WIDTHxHEIGHT; calibrates the projector from phase maps.
@@ -72,6 +75,15 @@ pub struct Args {
     /// --sim: also write the rendered board images (PNG) here.
     #[arg(long, value_name = "DIR")]
     save_images: Option<PathBuf>,
+}
+
+/// Which calibration target the images show.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum TargetKind {
+    /// A checkerboard; `--cols x --rows` inner corners.
+    Checkerboard,
+    /// A symmetric grid of dark circles on white; `--cols x --rows` circles.
+    Circles,
 }
 
 fn parse_bits(s: &str) -> Result<u8, String> {
@@ -143,7 +155,7 @@ fn run_sim(args: &Args, options: &HeadOptions) -> anyhow::Result<()> {
     }
     let cal = calibrate_head(
         &args.head,
-        &sim.board,
+        &Target::Checkerboard(sim.board),
         &captures,
         &sim.projector_spec(),
         options,
@@ -157,7 +169,7 @@ fn run_sim(args: &Args, options: &HeadOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn board_of(args: &Args) -> anyhow::Result<Checkerboard> {
+fn target_of(args: &Args) -> anyhow::Result<Target> {
     if args.cols < 2 || args.rows < 2 {
         bail!(
             "--cols {} --rows {}: a board needs >= 2x2 inner corners",
@@ -168,10 +180,19 @@ fn board_of(args: &Args) -> anyhow::Result<Checkerboard> {
     if !(args.square_mm.is_finite() && args.square_mm > 0.0) {
         bail!("--square-mm {} is not a positive length", args.square_mm);
     }
-    Ok(Checkerboard {
-        cols: args.cols,
-        rows: args.rows,
-        square_m: args.square_mm * 1e-3,
+    Ok(match args.target {
+        TargetKind::Checkerboard => Target::Checkerboard(Checkerboard {
+            cols: args.cols,
+            rows: args.rows,
+            square_m: args.square_mm * 1e-3,
+        }),
+        // The detector does not use the diameter; it only matters for renders.
+        TargetKind::Circles => Target::CircleGrid(CircleGrid {
+            cols: args.cols,
+            rows: args.rows,
+            spacing_m: args.square_mm * 1e-3,
+            diameter_m: 0.4 * args.square_mm * 1e-3,
+        }),
     })
 }
 
@@ -200,7 +221,7 @@ fn board_images(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
 }
 
 fn run_images(args: &Args, dir: &Path, options: &HeadOptions) -> anyhow::Result<()> {
-    let board = board_of(args)?;
+    let board = target_of(args)?;
     let mut captures = Vec::new();
     for path in board_images(dir)? {
         let image = load_gray(&path)?;
