@@ -1,0 +1,615 @@
+//! The rig calibration file: one JSON document per rig, OpenCV field names.
+//!
+//! ```json
+//! {
+//!   "format": "slscan-rig", "version": 1,
+//!   "heads": [{
+//!     "name": "A",
+//!     "camera":    {"width_px": 3072, "height_px": 2048,
+//!                   "fx": 4000.0, "fy": 4000.0, "cx": 1535.5, "cy": 1023.5,
+//!                   "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0, "k3": 0.0,
+//!                   "rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation_m": [0,0,0]},
+//!     "projector": {"width_px": 912, "height_px": 1140, "...": "same fields"},
+//!     "view_errors": [{"view": "pose_00", "camera_rms_px": 0.08, "projector_rms_px": 0.12}]
+//!   }],
+//!   "head_to_head": null
+//! }
+//! ```
+//!
+//! `rotation` is row-major and, with `translation_m`, maps the head's world frame into the
+//! device (`x_d = R x_w + t`), as OpenCV's `R`/`T`. Reading parses the text (serde names a
+//! missing or mistyped field with its line), then validates it into a [`RigCalibration`]
+//! the rest of the code trusts; writing validates first and never leaves a partial file.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+
+use super::{Distortion, Head, Intrinsics, PinholeModel, Pose, RigCalibration, ViewError};
+
+/// The `format` string every rig file carries.
+pub const FORMAT: &str = "slscan-rig";
+/// The file version this code reads and writes.
+pub const VERSION: u32 = 1;
+/// Largest image side accepted, pixels (guards against garbage sizes).
+pub const MAX_SIDE_PX: u32 = 65_536;
+
+/// What can be wrong with a rig file.
+#[derive(Debug, thiserror::Error)]
+pub enum RigFileError {
+    /// The file could not be read or written.
+    #[error("rig file {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The text is not valid JSON for a rig (missing field, wrong type, wrong array length).
+    #[error("rig file {path}: {source}")]
+    Json {
+        /// The file (empty for in-memory text).
+        path: PathBuf,
+        /// serde_json's error, with line and column.
+        source: serde_json::Error,
+    },
+    /// `format` or `version` is not one this code reads.
+    #[error("not a rig file this version reads: format {format:?} version {version} (want {FORMAT:?} {VERSION})")]
+    UnsupportedFormat {
+        /// The `format` found.
+        format: String,
+        /// The `version` found.
+        version: u32,
+    },
+    /// A number is NaN or infinite.
+    #[error("{field} is {value}, not a finite number")]
+    NonFinite {
+        /// Where, e.g. `heads[0].camera.k1`.
+        field: String,
+        /// The value.
+        value: f64,
+    },
+    /// A focal length is zero or negative.
+    #[error("{device}: focal lengths must be positive, got fx = {fx}, fy = {fy}")]
+    NonPositiveFocal {
+        /// Which device, e.g. `heads[0].projector`.
+        device: String,
+        /// fx found, pixels.
+        fx: f64,
+        /// fy found, pixels.
+        fy: f64,
+    },
+    /// An image size is zero or absurdly large.
+    #[error("{device}: image size {width_px}x{height_px} is not in 1..={MAX_SIDE_PX}")]
+    BadImageSize {
+        /// Which device.
+        device: String,
+        /// Width found.
+        width_px: u32,
+        /// Height found.
+        height_px: u32,
+    },
+    /// A rotation matrix is not orthonormal with determinant +1.
+    #[error("{device}: rotation is not a proper rotation (defect {defect:.3e} > 1e-6)")]
+    NotARotation {
+        /// Which transform.
+        device: String,
+        /// `max|R^T R - I| + |det R - 1|`.
+        defect: f64,
+    },
+    /// A rig needs one or two heads.
+    #[error("a rig has 1 or 2 heads, this one has {count}")]
+    HeadCount {
+        /// Heads found.
+        count: usize,
+    },
+    /// Two heads need `head_to_head`; one head must not have it.
+    #[error("{heads} head(s) but head_to_head is {}", if *.present { "present" } else { "missing" })]
+    HeadToHead {
+        /// Heads found.
+        heads: usize,
+        /// Whether `head_to_head` was given.
+        present: bool,
+    },
+    /// Two heads share a name.
+    #[error("two heads are both named {name:?}")]
+    DuplicateHeadName {
+        /// The name.
+        name: String,
+    },
+    /// A reprojection error is negative.
+    #[error("{field} = {value} px: a reprojection error cannot be negative")]
+    NegativeError {
+        /// Where.
+        field: String,
+        /// The value.
+        value: f64,
+    },
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RigDoc {
+    format: String,
+    version: u32,
+    heads: Vec<HeadDoc>,
+    #[serde(default)]
+    head_to_head: Option<PoseDoc>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HeadDoc {
+    name: String,
+    camera: DeviceDoc,
+    projector: DeviceDoc,
+    #[serde(default)]
+    view_errors: Vec<ViewErrorDoc>,
+    /// Written for people reading the file; recomputed from `view_errors`, ignored on read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    camera_rms_px: Option<f64>,
+    /// As `camera_rms_px`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    projector_rms_px: Option<f64>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DeviceDoc {
+    width_px: u32,
+    height_px: u32,
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
+    k1: f64,
+    k2: f64,
+    p1: f64,
+    p2: f64,
+    k3: f64,
+    rotation: [[f64; 3]; 3],
+    translation_m: [f64; 3],
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PoseDoc {
+    rotation: [[f64; 3]; 3],
+    translation_m: [f64; 3],
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ViewErrorDoc {
+    view: String,
+    camera_rms_px: f64,
+    #[serde(default)]
+    projector_rms_px: Option<f64>,
+}
+
+/// Reads and validates a rig file.
+pub fn read_rig(path: &Path) -> Result<RigCalibration, RigFileError> {
+    let text = std::fs::read_to_string(path).map_err(|source| RigFileError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse_rig(&text).map_err(|e| match e {
+        RigFileError::Json { source, .. } => RigFileError::Json {
+            path: path.to_owned(),
+            source,
+        },
+        other => other,
+    })
+}
+
+/// Parses and validates rig JSON text.
+pub fn parse_rig(text: &str) -> Result<RigCalibration, RigFileError> {
+    let doc: RigDoc = serde_json::from_str(text).map_err(|source| RigFileError::Json {
+        path: PathBuf::new(),
+        source,
+    })?;
+    if doc.format != FORMAT || doc.version != VERSION {
+        return Err(RigFileError::UnsupportedFormat {
+            format: doc.format,
+            version: doc.version,
+        });
+    }
+    let rig = RigCalibration {
+        heads: doc.heads.into_iter().map(head_from_doc).collect(),
+        head_to_head: doc
+            .head_to_head
+            .map(|p| pose_from_doc(&p.rotation, &p.translation_m)),
+    };
+    validate(&rig)?;
+    Ok(rig)
+}
+
+/// Validates, then renders the rig as pretty JSON text.
+pub fn to_json(rig: &RigCalibration) -> Result<String, RigFileError> {
+    validate(rig)?;
+    let doc = RigDoc {
+        format: FORMAT.to_owned(),
+        version: VERSION,
+        heads: rig.heads.iter().map(head_to_doc).collect(),
+        head_to_head: rig.head_to_head.as_ref().map(|p| {
+            let (rotation, translation_m) = pose_to_doc(p);
+            PoseDoc {
+                rotation,
+                translation_m,
+            }
+        }),
+    };
+    serde_json::to_string_pretty(&doc).map_err(|source| RigFileError::Json {
+        path: PathBuf::new(),
+        source,
+    })
+}
+
+/// Validates and writes a rig file (temp file, then rename: never a partial file).
+pub fn write_rig(path: &Path, rig: &RigCalibration) -> Result<(), RigFileError> {
+    let text = to_json(rig)?;
+    crate::io::write_atomically(path, |w| w.write_all(text.as_bytes())).map_err(|source| {
+        RigFileError::Io {
+            path: path.to_owned(),
+            source,
+        }
+    })
+}
+
+/// Checks a rig: 1-2 heads, unique names, finite numbers, positive focal lengths, sane
+/// sizes, proper rotations, `head_to_head` iff two heads, non-negative errors.
+pub fn validate(rig: &RigCalibration) -> Result<(), RigFileError> {
+    let count = rig.heads.len();
+    if !(1..=2).contains(&count) {
+        return Err(RigFileError::HeadCount { count });
+    }
+    if (count == 2) != rig.head_to_head.is_some() {
+        return Err(RigFileError::HeadToHead {
+            heads: count,
+            present: rig.head_to_head.is_some(),
+        });
+    }
+    if count == 2 && rig.heads[0].name == rig.heads[1].name {
+        return Err(RigFileError::DuplicateHeadName {
+            name: rig.heads[0].name.clone(),
+        });
+    }
+    for (i, head) in rig.heads.iter().enumerate() {
+        validate_device(&format!("heads[{i}].camera"), &head.camera)?;
+        validate_device(&format!("heads[{i}].projector"), &head.projector)?;
+        for (j, v) in head.view_errors.iter().enumerate() {
+            let field = format!("heads[{i}].view_errors[{j}]");
+            check_error(&format!("{field}.camera_rms_px"), v.camera_rms_px)?;
+            if let Some(p) = v.projector_rms_px {
+                check_error(&format!("{field}.projector_rms_px"), p)?;
+            }
+        }
+    }
+    if let Some(p) = &rig.head_to_head {
+        validate_pose("head_to_head", p)?;
+    }
+    Ok(())
+}
+
+fn check_error(field: &str, value: f64) -> Result<(), RigFileError> {
+    finite(field, value)?;
+    if value < 0.0 {
+        return Err(RigFileError::NegativeError {
+            field: field.to_owned(),
+            value,
+        });
+    }
+    Ok(())
+}
+
+fn finite(field: &str, value: f64) -> Result<(), RigFileError> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(RigFileError::NonFinite {
+            field: field.to_owned(),
+            value,
+        })
+    }
+}
+
+fn validate_device(device: &str, m: &PinholeModel) -> Result<(), RigFileError> {
+    let k = &m.intrinsics;
+    let d = &m.distortion;
+    let named = [
+        ("fx", k.fx),
+        ("fy", k.fy),
+        ("cx", k.cx),
+        ("cy", k.cy),
+        ("k1", d.k1),
+        ("k2", d.k2),
+        ("p1", d.p1),
+        ("p2", d.p2),
+        ("k3", d.k3),
+    ];
+    for (name, value) in named {
+        finite(&format!("{device}.{name}"), value)?;
+    }
+    if k.fx <= 0.0 || k.fy <= 0.0 {
+        return Err(RigFileError::NonPositiveFocal {
+            device: device.to_owned(),
+            fx: k.fx,
+            fy: k.fy,
+        });
+    }
+    let side_ok = |s: u32| (1..=MAX_SIDE_PX).contains(&s);
+    if !side_ok(m.width_px) || !side_ok(m.height_px) {
+        return Err(RigFileError::BadImageSize {
+            device: device.to_owned(),
+            width_px: m.width_px,
+            height_px: m.height_px,
+        });
+    }
+    validate_pose(device, &m.pose)
+}
+
+fn validate_pose(device: &str, p: &Pose) -> Result<(), RigFileError> {
+    for (i, v) in p.rotation.iter().enumerate() {
+        finite(&format!("{device}.rotation[{}][{}]", i % 3, i / 3), *v)?;
+    }
+    for (i, v) in p.translation_m.iter().enumerate() {
+        finite(&format!("{device}.translation_m[{i}]"), *v)?;
+    }
+    let defect = p.rotation_defect();
+    if defect > 1e-6 {
+        return Err(RigFileError::NotARotation {
+            device: device.to_owned(),
+            defect,
+        });
+    }
+    Ok(())
+}
+
+fn pose_from_doc(r: &[[f64; 3]; 3], t: &[f64; 3]) -> Pose {
+    Pose {
+        rotation: Matrix3::from_fn(|i, j| r[i][j]),
+        translation_m: Vector3::from(*t),
+    }
+}
+
+fn pose_to_doc(p: &Pose) -> ([[f64; 3]; 3], [f64; 3]) {
+    let r = &p.rotation;
+    let rotation = [0, 1, 2].map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]);
+    (rotation, p.translation_m.into())
+}
+
+fn device_from_doc(d: &DeviceDoc) -> PinholeModel {
+    PinholeModel {
+        width_px: d.width_px,
+        height_px: d.height_px,
+        intrinsics: Intrinsics {
+            fx: d.fx,
+            fy: d.fy,
+            cx: d.cx,
+            cy: d.cy,
+        },
+        distortion: Distortion {
+            k1: d.k1,
+            k2: d.k2,
+            p1: d.p1,
+            p2: d.p2,
+            k3: d.k3,
+        },
+        pose: pose_from_doc(&d.rotation, &d.translation_m),
+    }
+}
+
+fn device_to_doc(m: &PinholeModel) -> DeviceDoc {
+    let (rotation, translation_m) = pose_to_doc(&m.pose);
+    let (k, d) = (&m.intrinsics, &m.distortion);
+    DeviceDoc {
+        width_px: m.width_px,
+        height_px: m.height_px,
+        fx: k.fx,
+        fy: k.fy,
+        cx: k.cx,
+        cy: k.cy,
+        k1: d.k1,
+        k2: d.k2,
+        p1: d.p1,
+        p2: d.p2,
+        k3: d.k3,
+        rotation,
+        translation_m,
+    }
+}
+
+fn head_from_doc(h: HeadDoc) -> Head {
+    Head {
+        name: h.name,
+        camera: device_from_doc(&h.camera),
+        projector: device_from_doc(&h.projector),
+        view_errors: h
+            .view_errors
+            .into_iter()
+            .map(|v| ViewError {
+                view: v.view,
+                camera_rms_px: v.camera_rms_px,
+                projector_rms_px: v.projector_rms_px,
+            })
+            .collect(),
+    }
+}
+
+fn head_to_doc(h: &Head) -> HeadDoc {
+    HeadDoc {
+        name: h.name.clone(),
+        camera: device_to_doc(&h.camera),
+        projector: device_to_doc(&h.projector),
+        view_errors: h
+            .view_errors
+            .iter()
+            .map(|v| ViewErrorDoc {
+                view: v.view.clone(),
+                camera_rms_px: v.camera_rms_px,
+                projector_rms_px: v.projector_rms_px,
+            })
+            .collect(),
+        camera_rms_px: h.camera_rms_px(),
+        projector_rms_px: h.projector_rms_px(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    fn head(name: &str) -> Head {
+        let camera = PinholeModel::ideal(320, 240, 400.0);
+        let mut projector = PinholeModel::ideal(912, 1140, 1500.0);
+        projector.distortion.k1 = 0.03;
+        projector.pose = Pose {
+            rotation: *Rotation3::from_euler_angles(0.0, -0.2, 0.0).matrix(),
+            translation_m: Vector3::new(-0.1, 0.0, 0.01),
+        };
+        Head {
+            name: name.to_owned(),
+            camera,
+            projector,
+            view_errors: vec![ViewError {
+                view: "pose_00".into(),
+                camera_rms_px: 0.08,
+                projector_rms_px: Some(0.12),
+            }],
+        }
+    }
+
+    fn two_heads() -> RigCalibration {
+        RigCalibration {
+            heads: vec![head("A"), head("B")],
+            head_to_head: Some(Pose {
+                rotation: *Rotation3::from_euler_angles(0.0, 1.2, 0.0).matrix(),
+                translation_m: Vector3::new(0.5, 0.0, 0.2),
+            }),
+        }
+    }
+
+    #[test]
+    fn json_round_trip_is_exact() {
+        for rig in [RigCalibration::single(head("A")), two_heads()] {
+            let text = to_json(&rig).expect("valid");
+            let back = parse_rig(&text).expect("parses");
+            assert_eq!(back, rig);
+        }
+    }
+
+    #[test]
+    fn file_round_trip_and_no_temp_left() {
+        let dir = std::env::temp_dir().join(format!("slscan-rig-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("rig.json");
+        write_rig(&path, &two_heads()).expect("writes");
+        assert_eq!(read_rig(&path).expect("reads"), two_heads());
+        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+        assert_eq!(names.len(), 1, "only rig.json remains");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn missing_field_is_named() {
+        let text = to_json(&RigCalibration::single(head("A"))).unwrap();
+        let broken = text.replacen("\"fy\"", "\"fyy\"", 1);
+        let err = parse_rig(&broken).unwrap_err();
+        assert!(matches!(err, RigFileError::Json { .. }));
+        assert!(err.to_string().contains("fyy"), "{err}");
+        let missing = text.replacen("\"k3\": 0.0,", "", 1);
+        let err = parse_rig(&missing).unwrap_err().to_string();
+        assert!(err.contains("missing field `k3`"), "{err}");
+    }
+
+    #[test]
+    fn wrong_array_length_is_a_json_error() {
+        let text = to_json(&RigCalibration::single(head("A"))).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let mut v = v;
+        v["heads"][0]["camera"]["translation_m"] = serde_json::json!([0.0, 0.0]);
+        let err = parse_rig(&v.to_string()).unwrap_err();
+        assert!(err.to_string().contains("length"), "{err}");
+    }
+
+    #[test]
+    fn bad_values_get_typed_errors() {
+        let mut rig = RigCalibration::single(head("A"));
+        rig.heads[0].camera.intrinsics.fx = -1.0;
+        assert!(matches!(
+            to_json(&rig),
+            Err(RigFileError::NonPositiveFocal { fx, .. }) if fx == -1.0
+        ));
+
+        let mut rig = RigCalibration::single(head("A"));
+        rig.heads[0].projector.distortion.k2 = f64::NAN;
+        match to_json(&rig) {
+            Err(RigFileError::NonFinite { field, .. }) => {
+                assert_eq!(field, "heads[0].projector.k2")
+            }
+            other => panic!("{other:?}"),
+        }
+
+        let mut rig = RigCalibration::single(head("A"));
+        rig.heads[0].camera.width_px = 0;
+        assert!(matches!(
+            to_json(&rig),
+            Err(RigFileError::BadImageSize { width_px: 0, .. })
+        ));
+
+        let mut rig = RigCalibration::single(head("A"));
+        rig.heads[0].camera.pose.rotation[(0, 0)] = 1.1;
+        assert!(matches!(
+            to_json(&rig),
+            Err(RigFileError::NotARotation { .. })
+        ));
+
+        let mut rig = two_heads();
+        rig.head_to_head = None;
+        assert!(matches!(
+            to_json(&rig),
+            Err(RigFileError::HeadToHead {
+                heads: 2,
+                present: false
+            })
+        ));
+
+        let mut rig = two_heads();
+        rig.heads[1].name = "A".into();
+        assert!(matches!(
+            to_json(&rig),
+            Err(RigFileError::DuplicateHeadName { .. })
+        ));
+
+        let rig = RigCalibration {
+            heads: vec![],
+            head_to_head: None,
+        };
+        assert!(matches!(
+            to_json(&rig),
+            Err(RigFileError::HeadCount { count: 0 })
+        ));
+    }
+
+    #[test]
+    fn nan_and_wrong_format_in_text_are_rejected() {
+        let text = to_json(&RigCalibration::single(head("A"))).unwrap();
+        let nan = text.replacen("\"fx\": 400.0", "\"fx\": NaN", 1);
+        assert!(matches!(parse_rig(&nan), Err(RigFileError::Json { .. })));
+        let null = text.replacen("\"fx\": 400.0", "\"fx\": null", 1);
+        assert!(matches!(parse_rig(&null), Err(RigFileError::Json { .. })));
+        let other = text.replacen("slscan-rig", "something-else", 1);
+        assert!(matches!(
+            parse_rig(&other),
+            Err(RigFileError::UnsupportedFormat { .. })
+        ));
+    }
+
+    #[test]
+    fn missing_file_is_an_io_error() {
+        let err = read_rig(Path::new("/nonexistent/rig.json")).unwrap_err();
+        assert!(matches!(err, RigFileError::Io { .. }));
+    }
+}

@@ -1,0 +1,389 @@
+//! Reading fringe images (8- or 16-bit PNG/TIFF -> f32 in [0, 1]) and writing pictures.
+//!
+//! A capture set is checked as a whole: all frames the same size and bit depth, none
+//! missing, none saturated beyond a tolerated fraction, none empty (no signal).
+
+use std::path::{Path, PathBuf};
+
+use image::{DynamicImage, ImageBuffer, Luma, Rgb};
+
+use crate::raster::Raster;
+
+/// What can be wrong with an image or a set of images.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    /// The file could not be opened or decoded.
+    #[error("image {path}: {source}")]
+    Decode {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's error.
+        source: image::ImageError,
+    },
+    /// The pixel format is not 8/16-bit grey or RGB.
+    #[error("image {path}: unsupported pixel format {format}")]
+    UnsupportedFormat {
+        /// The file.
+        path: PathBuf,
+        /// The format found.
+        format: String,
+    },
+    /// A frame differs in size from the first frame of its set.
+    #[error("image {path} is {got:?} but the set's first frame is {expected:?} (width, height)")]
+    SizeMismatch {
+        /// The file.
+        path: PathBuf,
+        /// Size of the first frame.
+        expected: (usize, usize),
+        /// Size of this frame.
+        got: (usize, usize),
+    },
+    /// A frame has another bit depth than the first frame of its set.
+    #[error("image {path} is {got}-bit but the set's first frame is {expected}-bit")]
+    BitDepthMismatch {
+        /// The file.
+        path: PathBuf,
+        /// Bits of the first frame.
+        expected: u8,
+        /// Bits of this frame.
+        got: u8,
+    },
+    /// The set has another number of frames than expected.
+    #[error("{dir}: expected {expected} frames, found {found}")]
+    MissingFrames {
+        /// The folder.
+        dir: PathBuf,
+        /// Frames the pattern set needs.
+        expected: usize,
+        /// Frames found.
+        found: usize,
+    },
+    /// Too many pixels at full scale.
+    #[error("image {path}: {fraction:.1}% of pixels saturated (limit {limit:.1}%)")]
+    Saturated {
+        /// The file.
+        path: PathBuf,
+        /// Saturated share, percent.
+        fraction: f64,
+        /// Tolerated share, percent.
+        limit: f64,
+    },
+    /// The frame carries no signal (dark or flat).
+    #[error("image {path}: no signal (min {min:.4}, max {max:.4})")]
+    Empty {
+        /// The file.
+        path: PathBuf,
+        /// Smallest value.
+        min: f32,
+        /// Largest value.
+        max: f32,
+    },
+    /// A folder could not be listed or a file written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+}
+
+/// A loaded frame with its source bit depth.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    /// Intensities in [0, 1] (RGB frames are reduced to luma).
+    pub image: Raster<f32>,
+    /// 8 or 16.
+    pub bit_depth: u8,
+}
+
+/// Loads one 8- or 16-bit grey (or RGB, reduced to luma) image as f32 in [0, 1].
+pub fn load_gray(path: &Path) -> Result<Frame, ImageError> {
+    let img = image::open(path).map_err(|source| ImageError::Decode {
+        path: path.to_owned(),
+        source,
+    })?;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let (data, bit_depth): (Vec<f32>, u8) = match &img {
+        DynamicImage::ImageLuma8(b) => (
+            b.as_raw().iter().map(|&v| f32::from(v) / 255.0).collect(),
+            8,
+        ),
+        DynamicImage::ImageLuma16(b) => (
+            b.as_raw().iter().map(|&v| f32::from(v) / 65535.0).collect(),
+            16,
+        ),
+        DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) | DynamicImage::ImageLumaA8(_) => {
+            (
+                img.to_luma8()
+                    .as_raw()
+                    .iter()
+                    .map(|&v| f32::from(v) / 255.0)
+                    .collect(),
+                8,
+            )
+        }
+        DynamicImage::ImageRgb16(_)
+        | DynamicImage::ImageRgba16(_)
+        | DynamicImage::ImageLumaA16(_) => (
+            img.to_luma16()
+                .as_raw()
+                .iter()
+                .map(|&v| f32::from(v) / 65535.0)
+                .collect(),
+            16,
+        ),
+        other => {
+            return Err(ImageError::UnsupportedFormat {
+                path: path.to_owned(),
+                format: format!("{:?}", other.color()),
+            })
+        }
+    };
+    Ok(Frame {
+        image: Raster {
+            width: w,
+            height: h,
+            data,
+        },
+        bit_depth,
+    })
+}
+
+/// Limits for [`check_exposure`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExposureLimits {
+    /// Values at or above this count as saturated (for example 248/255, seed 003).
+    pub saturation_level: f32,
+    /// Largest tolerated saturated share, percent.
+    pub max_saturated_percent: f64,
+    /// Smallest `max - min` that counts as signal.
+    pub min_range: f32,
+}
+
+impl Default for ExposureLimits {
+    fn default() -> Self {
+        Self {
+            saturation_level: 248.0 / 255.0,
+            max_saturated_percent: 5.0,
+            min_range: 0.02,
+        }
+    }
+}
+
+/// Rejects saturated or empty frames.
+pub fn check_exposure(
+    path: &Path,
+    img: &Raster<f32>,
+    limits: &ExposureLimits,
+) -> Result<(), ImageError> {
+    let (mut min, mut max, mut saturated) = (f32::INFINITY, f32::NEG_INFINITY, 0usize);
+    for &v in &img.data {
+        min = min.min(v);
+        max = max.max(v);
+        saturated += usize::from(v >= limits.saturation_level);
+    }
+    if img.is_empty() || max - min < limits.min_range {
+        return Err(ImageError::Empty {
+            path: path.to_owned(),
+            min,
+            max,
+        });
+    }
+    let fraction = 100.0 * saturated as f64 / img.len() as f64;
+    if fraction > limits.max_saturated_percent {
+        return Err(ImageError::Saturated {
+            path: path.to_owned(),
+            fraction,
+            limit: limits.max_saturated_percent,
+        });
+    }
+    Ok(())
+}
+
+/// Loads a set of frames, checking sizes, bit depths and exposure.
+pub fn load_set(
+    paths: &[PathBuf],
+    limits: &ExposureLimits,
+) -> Result<Vec<Raster<f32>>, ImageError> {
+    let mut out: Vec<Raster<f32>> = Vec::with_capacity(paths.len());
+    let mut first: Option<((usize, usize), u8)> = None;
+    for path in paths {
+        let frame = load_gray(path)?;
+        let size = frame.image.size();
+        match first {
+            None => first = Some((size, frame.bit_depth)),
+            Some((expected, _)) if expected != size => {
+                return Err(ImageError::SizeMismatch {
+                    path: path.clone(),
+                    expected,
+                    got: size,
+                })
+            }
+            Some((_, bits)) if bits != frame.bit_depth => {
+                return Err(ImageError::BitDepthMismatch {
+                    path: path.clone(),
+                    expected: bits,
+                    got: frame.bit_depth,
+                })
+            }
+            Some(_) => {}
+        }
+        check_exposure(path, &frame.image, limits)?;
+        out.push(frame.image);
+    }
+    Ok(out)
+}
+
+/// The PNG/TIFF files of a folder, sorted by name.
+pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, ImageError> {
+    let io = |source| ImageError::Io {
+        path: dir.to_owned(),
+        source,
+    };
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(io)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "tif" | "tiff"))
+        })
+        .collect();
+    paths.sort();
+    Ok(paths)
+}
+
+/// Writes a [0, 1] raster as 8- or 16-bit grey PNG (values clamped), atomically.
+pub fn save_gray_png(path: &Path, img: &Raster<f32>, sixteen_bit: bool) -> Result<(), ImageError> {
+    let (w, h) = (img.width as u32, img.height as u32);
+    let dynamic = if sixteen_bit {
+        let data = img
+            .data
+            .iter()
+            .map(|&v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16)
+            .collect();
+        DynamicImage::ImageLuma16(ImageBuffer::<Luma<u16>, _>::from_raw(w, h, data).expect("sized"))
+    } else {
+        let data = img
+            .data
+            .iter()
+            .map(|&v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
+            .collect();
+        DynamicImage::ImageLuma8(ImageBuffer::<Luma<u8>, _>::from_raw(w, h, data).expect("sized"))
+    };
+    save_png(path, &dynamic)
+}
+
+/// Writes an RGB8 raster as PNG, atomically.
+pub fn save_rgb_png(path: &Path, img: &Raster<[u8; 3]>) -> Result<(), ImageError> {
+    let data = img.data.iter().flatten().copied().collect();
+    let buf = ImageBuffer::<Rgb<u8>, _>::from_raw(img.width as u32, img.height as u32, data)
+        .expect("sized");
+    save_png(path, &DynamicImage::ImageRgb8(buf))
+}
+
+fn save_png(path: &Path, img: &DynamicImage) -> Result<(), ImageError> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|source| ImageError::Decode {
+        path: path.to_owned(),
+        source,
+    })?;
+    super::write_atomically(path, |w| w.write_all(&bytes)).map_err(|source| ImageError::Io {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+/// Maps a raster to [0, 1] for viewing: NaN -> 0, finite values stretched min..max.
+pub fn normalise_for_view(img: &Raster<f32>) -> Raster<f32> {
+    let (min, max) = img
+        .data
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let span = if max > min { max - min } else { 1.0 };
+    Raster {
+        width: img.width,
+        height: img.height,
+        data: img
+            .data
+            .iter()
+            .map(|&v| if v.is_finite() { (v - min) / span } else { 0.0 })
+            .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("slscan-img-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn eight_and_sixteen_bit_round_trip_and_mismatch() {
+        let dir = tmp("rt");
+        let img = Raster::from_fn(16, 8, |x, y| (x + y) as f32 / 30.0 + 0.05);
+        save_gray_png(&dir.join("a.png"), &img, false).unwrap();
+        save_gray_png(&dir.join("b.png"), &img, true).unwrap();
+        let a = load_gray(&dir.join("a.png")).unwrap();
+        let b = load_gray(&dir.join("b.png")).unwrap();
+        assert_eq!((a.bit_depth, b.bit_depth), (8, 16));
+        for i in 0..img.len() {
+            assert!((a.image.data[i] - img.data[i]).abs() <= 0.5 / 255.0 + 1e-6);
+            assert!((b.image.data[i] - img.data[i]).abs() <= 0.5 / 65535.0 + 1e-6);
+        }
+        let limits = ExposureLimits::default();
+        let err = load_set(&[dir.join("a.png"), dir.join("b.png")], &limits).unwrap_err();
+        assert!(matches!(
+            err,
+            ImageError::BitDepthMismatch {
+                expected: 8,
+                got: 16,
+                ..
+            }
+        ));
+        save_gray_png(
+            &dir.join("c.png"),
+            &Raster::from_fn(8, 8, |x, _| x as f32 / 8.0),
+            false,
+        )
+        .unwrap();
+        let err = load_set(&[dir.join("a.png"), dir.join("c.png")], &limits).unwrap_err();
+        assert!(matches!(err, ImageError::SizeMismatch { .. }));
+        assert_eq!(list_images(&dir).unwrap().len(), 3);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn saturated_empty_and_missing_files() {
+        let p = Path::new("x.png");
+        let limits = ExposureLimits::default();
+        let flat = Raster::filled(10, 10, 0.3f32);
+        assert!(matches!(
+            check_exposure(p, &flat, &limits),
+            Err(ImageError::Empty { .. })
+        ));
+        let sat = Raster::from_fn(10, 10, |x, _| if x < 5 { 1.0 } else { 0.2 });
+        assert!(matches!(
+            check_exposure(p, &sat, &limits),
+            Err(ImageError::Saturated { .. })
+        ));
+        let ok = Raster::from_fn(10, 10, |x, _| x as f32 / 20.0);
+        assert!(check_exposure(p, &ok, &limits).is_ok());
+        assert!(matches!(
+            load_gray(Path::new("/nonexistent/x.png")),
+            Err(ImageError::Decode { .. })
+        ));
+    }
+}

@@ -1,0 +1,155 @@
+//! Phase unwrapping: wrapped phase -> absolute phase, one method per file.
+//!
+//! | method | file | needs |
+//! |---|---|---|
+//! | multi-frequency heterodyne (2, 3, 4 ... periods) | [`heterodyne`] | beat of all periods >= field |
+//! | projection distance minimisation (number-theoretic) | [`pdm`] | LCM of the periods >= field |
+//! | Gray code + phase | [`gray_code`] | Gray blocks <= half a period |
+//! | quality-guided spatial flood fill | [`quality_guided`] | one frequency, connected surface |
+//!
+//! Every method returns an [`AbsolutePhase`]: the absolute phase `Phi = 2 pi u / P` of one
+//! chosen period (projector coordinate `u`, pixel centres at integers) and a per-pixel
+//! [`PixelStatus`]. Pixels a method cannot unwrap reliably are marked, never guessed.
+
+pub mod gray_code;
+pub mod heterodyne;
+pub mod pdm;
+pub mod quality_guided;
+
+use crate::raster::Raster;
+
+/// How far a pixel got.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum PixelStatus {
+    /// Absolute phase is trustworthy.
+    Valid = 0,
+    /// Masked before unwrapping (modulation too low, saturated, outside the mask).
+    Masked = 1,
+    /// The method's consistency check failed (rounding residual too large, codes unclear,
+    /// two candidate orders too close): left out rather than guessed.
+    Unreliable = 2,
+    /// Spatial unwrapping never reached the pixel (separate region, below quality floor).
+    Unreached = 3,
+}
+
+/// Absolute phase of one period with a status per pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AbsolutePhase {
+    /// Absolute phase, radians (`2 pi u / period_px`); NaN where not [`PixelStatus::Valid`].
+    pub phase: Raster<f32>,
+    /// Status of each pixel.
+    pub status: Raster<PixelStatus>,
+    /// The period this phase belongs to, projector pixels.
+    pub period_px: f64,
+}
+
+impl AbsolutePhase {
+    /// Number of pixels with a given status.
+    pub fn count(&self, status: PixelStatus) -> usize {
+        self.status.data.iter().filter(|&&s| s == status).count()
+    }
+
+    /// Projector coordinate `u = Phi P / (2 pi)` at a pixel, if valid.
+    pub fn projector_coordinate(&self, x: usize, y: usize) -> Option<f64> {
+        (*self.status.at(x, y) == PixelStatus::Valid)
+            .then(|| f64::from(*self.phase.at(x, y)) * self.period_px / std::f64::consts::TAU)
+    }
+}
+
+/// What can be wrong with an unwrapping request.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum UnwrapError {
+    /// A method got fewer inputs than it needs.
+    #[error("{method} needs at least {need} wrapped phases / codes, got {got}")]
+    NotEnoughInputs {
+        /// The method.
+        method: &'static str,
+        /// Inputs given.
+        got: usize,
+        /// Inputs needed.
+        need: usize,
+    },
+    /// Inputs do not match the configuration (count of periods vs phase maps).
+    #[error("{method} was set up for {expected} inputs, got {got}")]
+    WrongInputCount {
+        /// The method.
+        method: &'static str,
+        /// Inputs configured.
+        expected: usize,
+        /// Inputs given.
+        got: usize,
+    },
+    /// A period is not a positive finite number, or two periods are equal.
+    #[error("bad periods {periods_px:?}: need positive, finite and pairwise different values")]
+    BadPeriods {
+        /// The periods given, projector pixels.
+        periods_px: Vec<f64>,
+    },
+    /// The periods cannot resolve the field: their combined unambiguous range is too short.
+    #[error("periods {periods_px:?} are unambiguous over {unambiguous_px:.1} px only, field is {range_px} px")]
+    RangeTooShort {
+        /// The periods, projector pixels.
+        periods_px: Vec<f64>,
+        /// Unambiguous range the periods give, pixels.
+        unambiguous_px: f64,
+        /// Field to cover, pixels.
+        range_px: f64,
+    },
+    /// Maps have different sizes.
+    #[error("map {index} is {got:?} but map 0 is {expected:?} (width, height)")]
+    SizeMismatch {
+        /// Index of the offending map.
+        index: usize,
+        /// Size of map 0.
+        expected: (usize, usize),
+        /// Size of the offending map.
+        got: (usize, usize),
+    },
+    /// Gray-code blocks too wide for the period to correct edge errors.
+    #[error("Gray block of {block_px} px must be at most half the period {period_px} px")]
+    BlockTooWide {
+        /// Finest Gray block, pixels.
+        block_px: f64,
+        /// Phase period, pixels.
+        period_px: f64,
+    },
+}
+
+/// Checks that all maps have the size of the first; returns `(width, height)`.
+pub(crate) fn same_size<T>(maps: &[&Raster<T>]) -> Result<(usize, usize), UnwrapError> {
+    let expected = maps.first().map(|m| m.size()).unwrap_or((0, 0));
+    for (index, m) in maps.iter().enumerate() {
+        if m.size() != expected || m.data.len() != expected.0 * expected.1 {
+            return Err(UnwrapError::SizeMismatch {
+                index,
+                expected,
+                got: m.size(),
+            });
+        }
+    }
+    Ok(expected)
+}
+
+/// Rounds `(estimate - wrapped) / 2 pi` to the fringe order; `None` when the residual
+/// exceeds `max_residual_rad` (the estimate is too far from any order to trust).
+#[inline]
+pub fn fringe_order(estimate_rad: f32, wrapped_rad: f32, max_residual_rad: f32) -> Option<f32> {
+    let turns = (estimate_rad - wrapped_rad) / std::f32::consts::TAU;
+    let k = turns.round();
+    let residual = (turns - k) * std::f32::consts::TAU;
+    (residual.abs() <= max_residual_rad).then_some(k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fringe_order_rounds_and_refuses() {
+        let tau = std::f32::consts::TAU;
+        assert_eq!(fringe_order(3.0 * tau + 0.1, 0.05, 1.0), Some(3.0));
+        assert_eq!(fringe_order(-2.0 * tau, 0.3, 1.0), Some(-2.0));
+        assert_eq!(fringe_order(3.0 * tau + 2.5, 0.0, 1.0), None);
+    }
+}
