@@ -2,3 +2,6 @@
 //!
 //! (Being written.)
 #![warn(missing_docs)]
+
+pub mod demultiplex;
+pub mod fusion;
