@@ -11,7 +11,9 @@
 
 pub mod board;
 pub mod calibration;
+pub mod demultiplex;
 pub mod fit;
+pub mod fusion;
 pub mod io;
 pub mod patterns;
 pub mod phase;

@@ -1,0 +1,268 @@
+//! Fusion of the two heads' point clouds into one.
+//!
+//! ```text
+//! cloud A (target) --normals::estimate_normals--> normals of A
+//! cloud B (source) --icp::register(initial = calibration extrinsic)--> IcpResult.transform
+//! A, T * B --merge::merge_clouds--> one cloud, one point per surface sample in the overlap
+//! ```
+//!
+//! Points are `f64` here: ICP accumulates normal equations over a million
+//! points and we want micrometre agreement; the PLY writer narrows to `f32`.
+
+pub mod icp;
+pub mod merge;
+pub mod normals;
+pub mod synthetic;
+
+use nalgebra::{Isometry3, Point3, Vector3};
+
+pub use icp::{register, IcpParams, IcpResult, IcpTarget, RobustKernel};
+pub use merge::{merge_clouds, DuplicateRule, MergeParams, MergeReport};
+pub use normals::estimate_normals;
+
+/// A point cloud in metres, with optional per-point normals and quality.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PointCloud {
+    /// Positions in metres.
+    pub points: Vec<Vector3<f64>>,
+    /// Unit normals, one per point, if known.
+    pub normals: Option<Vec<Vector3<f64>>>,
+    /// Predicted depth standard deviation in metres, one per point (lower is better).
+    pub quality: Option<Vec<f32>>,
+}
+
+impl PointCloud {
+    /// A cloud of bare points.
+    pub fn from_points(points: Vec<Vector3<f64>>) -> Self {
+        Self {
+            points,
+            normals: None,
+            quality: None,
+        }
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// True when the cloud has no points.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// Checks that the optional columns match the point count and that every
+    /// value is finite (and every quality positive).
+    pub fn validate(&self, cloud: &'static str) -> Result<(), FusionError> {
+        check_finite(cloud, &self.points)?;
+        if let Some(normals) = &self.normals {
+            check_len(cloud, "normals", self.points.len(), normals.len())?;
+            check_finite(cloud, normals)?;
+        }
+        if let Some(quality) = &self.quality {
+            check_len(cloud, "quality", self.points.len(), quality.len())?;
+            if let Some(index) = quality.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+                return Err(FusionError::BadQuality {
+                    cloud,
+                    index,
+                    sigma_m: quality[index],
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The cloud moved by `transform` (normals rotated, quality kept).
+    pub fn transformed(&self, transform: &Isometry3<f64>) -> Self {
+        let points = self
+            .points
+            .iter()
+            .map(|p| transform.transform_point(&Point3::from(*p)).coords)
+            .collect();
+        let normals = self.normals.as_ref().map(|normals| {
+            normals
+                .iter()
+                .map(|n| transform.transform_vector(n))
+                .collect()
+        });
+        Self {
+            points,
+            normals,
+            quality: self.quality.clone(),
+        }
+    }
+}
+
+/// What can go wrong while registering or merging clouds.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FusionError {
+    /// A cloud has fewer points than the algorithm needs.
+    #[error("cloud {cloud} has {points} points; at least {min} are needed")]
+    TooFewPoints {
+        /// Which cloud ("source", "target", "a", "b").
+        cloud: &'static str,
+        /// Points it has.
+        points: usize,
+        /// Points needed.
+        min: usize,
+    },
+    /// A coordinate or normal component is NaN or infinite.
+    #[error("cloud {cloud} has a non-finite value at point {index}")]
+    NonFinite {
+        /// Which cloud.
+        cloud: &'static str,
+        /// Index of the first offending point.
+        index: usize,
+    },
+    /// A per-point column has the wrong length.
+    #[error("cloud {cloud}: {field} has {got} entries for {expected} points")]
+    LengthMismatch {
+        /// Which cloud.
+        cloud: &'static str,
+        /// Which column ("normals", "quality").
+        field: &'static str,
+        /// Point count.
+        expected: usize,
+        /// Column length.
+        got: usize,
+    },
+    /// A quality (depth sigma) is not a positive finite number.
+    #[error("cloud {cloud}: quality {sigma_m} m at point {index} is not positive and finite")]
+    BadQuality {
+        /// Which cloud.
+        cloud: &'static str,
+        /// Index of the point.
+        index: usize,
+        /// The offending sigma in metres.
+        sigma_m: f32,
+    },
+    /// The target cloud carries no normals, but point-to-plane ICP needs them.
+    #[error("cloud {cloud} has no normals; call estimate_normals first")]
+    MissingNormals {
+        /// Which cloud.
+        cloud: &'static str,
+    },
+    /// A parameter is out of its range.
+    #[error("parameter {name} = {value} is out of range ({expected})")]
+    BadParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What it must be.
+        expected: &'static str,
+    },
+    /// Too few source points found a target point within the gate: the
+    /// clouds do not overlap under the current transform.
+    #[error("only {correspondences} correspondences within {gate_m} m at iteration {iteration}; need {min}")]
+    NoOverlap {
+        /// Correspondences found.
+        correspondences: usize,
+        /// Correspondences needed.
+        min: usize,
+        /// Gate distance in metres.
+        gate_m: f64,
+        /// ICP iteration (0-based).
+        iteration: usize,
+    },
+    /// The normal equations are singular: the overlap does not constrain all
+    /// six degrees of freedom (a plane, a cylinder...).
+    #[error(
+        "degenerate geometry at iteration {iteration}: the overlap does not constrain all 6 DOF"
+    )]
+    Degenerate {
+        /// ICP iteration (0-based).
+        iteration: usize,
+    },
+    /// The estimate left the basin of the initial guess or became non-finite.
+    #[error("ICP diverged at iteration {iteration}: correction {rotation_deg} deg / {translation_m} m from the initial guess")]
+    Diverged {
+        /// ICP iteration (0-based).
+        iteration: usize,
+        /// Rotation away from the initial guess, degrees.
+        rotation_deg: f64,
+        /// Translation away from the initial guess, metres.
+        translation_m: f64,
+    },
+    /// The kd-tree could not be built.
+    #[error("kd-tree construction failed: {0}")]
+    KdTree(String),
+}
+
+fn check_finite(cloud: &'static str, values: &[Vector3<f64>]) -> Result<(), FusionError> {
+    match values.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+        Some(index) => Err(FusionError::NonFinite { cloud, index }),
+        None => Ok(()),
+    }
+}
+
+fn check_len(
+    cloud: &'static str,
+    field: &'static str,
+    expected: usize,
+    got: usize,
+) -> Result<(), FusionError> {
+    if expected == got {
+        Ok(())
+    } else {
+        Err(FusionError::LengthMismatch {
+            cloud,
+            field,
+            expected,
+            got,
+        })
+    }
+}
+
+/// The kd-tree type used for all neighbour searches in fusion.
+pub(crate) type Tree = kiddo::ImmutableKdTree<f64, 3>;
+
+/// Builds a kd-tree over `points`; items are point indices.
+pub(crate) fn build_tree(points: &[Vector3<f64>]) -> Result<Tree, FusionError> {
+    let coords: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    Tree::new_from_slice(&coords).map_err(|e| FusionError::KdTree(format!("{e:?}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    #[test]
+    fn validate_reports_nan_and_bad_columns() {
+        let mut cloud = PointCloud::from_points(vec![Vector3::zeros(), Vector3::x()]);
+        assert_eq!(cloud.validate("a"), Ok(()));
+        cloud.quality = Some(vec![1e-5]);
+        assert!(matches!(
+            cloud.validate("a"),
+            Err(FusionError::LengthMismatch { got: 1, .. })
+        ));
+        cloud.quality = Some(vec![1e-5, -1.0]);
+        assert!(matches!(
+            cloud.validate("a"),
+            Err(FusionError::BadQuality { index: 1, .. })
+        ));
+        cloud.quality = None;
+        cloud.points[1].y = f64::NAN;
+        assert_eq!(
+            cloud.validate("a"),
+            Err(FusionError::NonFinite {
+                cloud: "a",
+                index: 1
+            })
+        );
+    }
+
+    #[test]
+    fn transformed_moves_points_and_rotates_normals() {
+        let mut cloud = PointCloud::from_points(vec![Vector3::new(1.0, 0.0, 0.0)]);
+        cloud.normals = Some(vec![Vector3::new(1.0, 0.0, 0.0)]);
+        let t = Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, 2.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2),
+        );
+        let moved = cloud.transformed(&t);
+        assert!((moved.points[0] - Vector3::new(0.0, 1.0, 2.0)).norm() < 1e-12);
+        assert!((moved.normals.unwrap()[0] - Vector3::new(0.0, 1.0, 0.0)).norm() < 1e-12);
+    }
+}
