@@ -231,3 +231,67 @@ fn metal_part_spans_50_to_1_and_saturates_on_highlights() {
         .fold((f32::MAX, 0.0f32), |(a, b), &x| (a.min(x), b.max(x)));
     assert!(hi / lo >= 49.9, "reflectivity range {}:1", hi / lo);
 }
+
+#[test]
+fn bad_patterns_and_timelines_are_typed_errors() {
+    let (scene, _) = tilted_plane();
+    let rig = Rig {
+        cameras: vec![camera(32, 24, Distortion::default())],
+        projectors: vec![projector(0.1, 40, 30)],
+        medium: Medium::Air,
+    };
+    let r = Renderer::new(&scene, &rig, 0, 0.0).unwrap();
+    let exp = Exposure {
+        start_s: 0.0,
+        end_s: 1e-3,
+    };
+    let wrong_size = vec![ProjectorTimeline::single(
+        Arc::new(Pattern::flat(41, 30, 1.0)),
+        0.0,
+        1e-3,
+    )];
+    assert!(matches!(
+        r.exposed(&wrong_size, exp),
+        Err(TwinError::PatternSize { got_w: 41, .. })
+    ));
+    let short = Pattern {
+        width: 40,
+        height: 30,
+        values: vec![0.5; 10],
+    };
+    let bad_buffer = vec![ProjectorTimeline::single(Arc::new(short), 0.0, 1e-3)];
+    assert!(matches!(
+        r.exposed(&bad_buffer, exp),
+        Err(TwinError::PatternBuffer { len: 10, .. })
+    ));
+    assert!(matches!(
+        r.exposed(&[], exp),
+        Err(TwinError::TimelineCount {
+            given: 0,
+            expected: 1
+        })
+    ));
+    let reversed = vec![ProjectorTimeline::single(
+        Arc::new(Pattern::flat(40, 30, 1.0)),
+        1e-3,
+        0.0,
+    )];
+    assert!(matches!(
+        r.exposed(&reversed, exp),
+        Err(TwinError::BadInterval { .. })
+    ));
+    assert!(matches!(
+        r.exposed(
+            &[ProjectorTimeline::dark()],
+            Exposure {
+                start_s: 0.0,
+                end_s: f64::NAN
+            }
+        ),
+        Err(TwinError::BadInterval { .. })
+    ));
+    assert!(matches!(
+        Renderer::new(&scene, &rig, 3, 0.0),
+        Err(TwinError::NoSuchCamera { index: 3, count: 1 })
+    ));
+}

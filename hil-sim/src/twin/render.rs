@@ -162,6 +162,21 @@ impl Renderer {
                         want_h: k.height,
                     });
                 }
+                // Fields are public: a hand-made pattern may not match its size.
+                if s.pattern.values.len() != k.width as usize * k.height as usize {
+                    return Err(TwinError::PatternBuffer {
+                        len: s.pattern.values.len(),
+                        width: k.width,
+                        height: k.height,
+                    });
+                }
+                if s.led.iter().any(|l| !(l.is_finite() && *l >= 0.0)) {
+                    return Err(TwinError::BadParameter {
+                        name: "LED drive",
+                        value: s.led.iter().map(|&l| l as f64).fold(f64::NAN, f64::min),
+                        why: "must be finite and >= 0",
+                    });
+                }
                 let dt = exposure.overlap_s(s.start_s, s.end_s);
                 if dt > 0.0 {
                     let weight = s.led.map(|l| l * dt as f32);
