@@ -254,7 +254,8 @@ impl Renderer {
         })
     }
 
-    /// The pattern as projector `pi`'s lens puts it on the scene (cached).
+    /// The pattern as projector `pi` puts it on the scene: its gamma, then
+    /// its lens defocus (cached).
     fn defocused(&self, pattern: &Arc<Pattern>, pi: usize) -> Arc<Pattern> {
         let mut cache = self.defocus_cache.lock().unwrap_or_else(|e| e.into_inner());
         if let Some((_, _, d)) = cache
@@ -263,7 +264,16 @@ impl Renderer {
         {
             return d.clone();
         }
-        let d = Arc::new(pattern.defocused(self.rig.projectors[pi].defocus_sigma_px));
+        let proj = &self.rig.projectors[pi];
+        // Gamma acts on the displayed grey level, before the lens blurs it.
+        let mut shown = (**pattern).clone();
+        if proj.gamma != 1.0 {
+            shown
+                .values
+                .iter_mut()
+                .for_each(|v| *v = v.max(0.0).powf(proj.gamma as f32));
+        }
+        let d = Arc::new(shown.defocused(proj.defocus_sigma_px));
         if cache.len() >= DEFOCUS_CACHE {
             cache.remove(0);
         }
