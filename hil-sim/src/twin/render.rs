@@ -12,7 +12,7 @@ use super::cache::CameraGeometry;
 use super::device::Rig;
 use super::error::TwinError;
 use super::medium::Medium;
-use super::pattern::{Exposure, Pattern, ProjectorTimeline, Tap};
+use super::pattern::{bit_plane_intervals, Display, Exposure, Pattern, ProjectorTimeline, Tap};
 use super::scatter::blur_varying;
 use super::scene::Scene;
 use super::sensor::{Image, SensorModel};
@@ -95,8 +95,8 @@ pub struct Renderer {
     defocus_cache: Mutex<Vec<DefocusEntry>>,
 }
 
-/// (shown pattern, projector index, its defocused image).
-type DefocusEntry = (Arc<Pattern>, usize, Arc<Pattern>);
+/// (shown pattern, projector index, bit plane or whole, its defocused image).
+type DefocusEntry = (Arc<Pattern>, usize, Option<u8>, Arc<Pattern>);
 
 /// Defocused patterns kept per renderer (a 24-pattern sequence for two projectors fits).
 const DEFOCUS_CACHE: usize = 64;
@@ -177,14 +177,25 @@ impl Renderer {
                         why: "must be finite and >= 0",
                     });
                 }
-                let dt = exposure.overlap_s(s.start_s, s.end_s);
-                if dt > 0.0 {
-                    let weight = s.led.map(|l| l * dt as f32);
-                    let mean = s.pattern.mean() as f64;
-                    for b in 0..3 {
-                        mean_drive[b] += weight[b] as f64 * mean;
+                // (plane, interval): the whole pattern, or each of its bit planes.
+                let parts: Vec<(Option<u8>, f64, f64)> = match s.display {
+                    Display::Steady => vec![(None, s.start_s, s.end_s)],
+                    Display::BitPlanes => bit_plane_intervals(s.start_s, s.end_s)
+                        .iter()
+                        .map(|&(k, a, b)| (Some(k), a, b))
+                        .collect(),
+                };
+                for (plane, a, b) in parts {
+                    let dt = exposure.overlap_s(a, b);
+                    if dt > 0.0 {
+                        let weight = s.led.map(|l| l * dt as f32);
+                        let lit = self.defocused(&s.pattern, pi, plane);
+                        let mean = lit.mean() as f64;
+                        for b in 0..3 {
+                            mean_drive[b] += weight[b] as f64 * mean;
+                        }
+                        active.push((lit, weight));
                     }
-                    active.push((self.defocused(&s.pattern, pi), weight));
                 }
             }
             let view = &g.projectors[pi];
@@ -256,17 +267,20 @@ impl Renderer {
 
     /// The pattern as projector `pi` puts it on the scene: its gamma, then
     /// its lens defocus (cached).
-    fn defocused(&self, pattern: &Arc<Pattern>, pi: usize) -> Arc<Pattern> {
+    fn defocused(&self, pattern: &Arc<Pattern>, pi: usize, plane: Option<u8>) -> Arc<Pattern> {
         let mut cache = self.defocus_cache.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, _, d)) = cache
+        if let Some((_, _, _, d)) = cache
             .iter()
-            .find(|(p, i, _)| *i == pi && Arc::ptr_eq(p, pattern))
+            .find(|(p, i, k, _)| *i == pi && *k == plane && Arc::ptr_eq(p, pattern))
         {
             return d.clone();
         }
         let proj = &self.rig.projectors[pi];
         // Gamma acts on the displayed grey level, before the lens blurs it.
-        let mut shown = (**pattern).clone();
+        let mut shown = match plane {
+            Some(k) => pattern.bit_plane(k),
+            None => (**pattern).clone(),
+        };
         if proj.gamma != 1.0 {
             shown
                 .values
@@ -277,7 +291,7 @@ impl Renderer {
         if cache.len() >= DEFOCUS_CACHE {
             cache.remove(0);
         }
-        cache.push((pattern.clone(), pi, d.clone()));
+        cache.push((pattern.clone(), pi, plane, d.clone()));
         d
     }
 
