@@ -7,6 +7,7 @@
 //! Rig (cameras, projectors, medium) ──┼─> Renderer::new      (ray casting, shadows,
 //!                                     │    = CameraGeometry    projector coords: once per pose)
 //! ProjectorTimeline per projector ────┴─> Renderer::exposed  (pattern look-ups, cheap)
+//!   (TwinRig keeps one Renderer per camera while the scene is static)
 //!                                         -> SensorModel::expose (crosstalk, noise, ADC)
 //!                                         -> Frame { image, clean, per_projector_clean, truth }
 //! ```
