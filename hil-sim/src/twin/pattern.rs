@@ -481,3 +481,39 @@ mod tests {
         .is_err());
     }
 }
+
+#[cfg(test)]
+mod proptests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Slow reference: bilinear interpolation written from the definition
+    /// (pixel centres at integers, edge pixels extended half a pixel).
+    fn sample_ref(p: &Pattern, u: f32, v: f32) -> f32 {
+        let (w, h) = (p.width as f64, p.height as f64);
+        let (u, v) = (u as f64, v as f64);
+        if u < -0.5 || v < -0.5 || u >= w - 0.5 || v >= h - 0.5 {
+            return 0.0;
+        }
+        let (u, v) = (u.clamp(0.0, w - 1.0), v.clamp(0.0, h - 1.0));
+        let mut acc = 0.0;
+        for y in 0..p.height as i64 {
+            for x in 0..p.width as i64 {
+                let wx = (1.0 - (u - x as f64).abs()).max(0.0);
+                let wy = (1.0 - (v - y as f64).abs()).max(0.0);
+                acc += wx * wy * p.values[(y * p.width as i64 + x) as usize] as f64;
+            }
+        }
+        acc as f32
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+        #[test]
+        fn sample_matches_reference(w in 1u32..9, h in 1u32..9, seed in 0u64..1000, u in -1.0f32..10.0, v in -1.0f32..10.0) {
+            let values: Vec<f32> = (0..w * h).map(|i| ((i as u64 * 7919 + seed) % 256) as f32 / 255.0).collect();
+            let p = Pattern { width: w, height: h, values };
+            prop_assert!((p.sample(u, v) - sample_ref(&p, u, v)).abs() < 1e-5);
+        }
+    }
+}
