@@ -421,3 +421,55 @@ fn triangulating_true_projector_columns_gives_true_depth() {
     // f32 storage of u (about 1e-5 px at 200 px) bounds this, not the geometry.
     assert!(worst < 2e-6, "worst {worst} m");
 }
+
+#[test]
+fn projector_gamma_harmonics_hurt_3_step_but_not_4_step() {
+    // (0.5 + 0.5 cos)^2.2 is mostly a 2nd harmonic: N = 3 aliases it onto
+    // the fundamental, N = 4 rejects it (only 3rd/5th would alias).
+    let (scene, _) = tilted_plane();
+    let fringe = Fringe {
+        period_px: 24.0,
+        angle_rad: 0.0,
+        shift_rad: 0.0,
+    };
+    let rms_error = |gamma: f64, n: usize| {
+        let mut p = projector(0.1, 200, 150);
+        p.gamma = gamma;
+        let rig = Rig {
+            cameras: vec![camera(96, 72, Distortion::default())],
+            projectors: vec![p],
+            medium: Medium::Air,
+        };
+        let r = Renderer::new(&scene, &rig, 0, 0.0).unwrap();
+        let sensor = SensorModel {
+            electrons_per_unit: 2e6,
+            ..SensorModel::ideal()
+        };
+        let exp = Exposure {
+            start_s: 0.0,
+            end_s: 1e-3,
+        };
+        let frames: Vec<Image> = (0..n)
+            .map(|k| {
+                let tl =
+                    ProjectorTimeline::single(fringe_pattern(200, 150, 24.0, 0.0, k, n), 0.0, 1e-3);
+                r.frame(&[tl], exp, &sensor, 0).unwrap().clean
+            })
+            .collect();
+        let truth = r
+            .frame(&[ProjectorTimeline::dark()], exp, &sensor, 0)
+            .unwrap()
+            .truth
+            .absolute_phase(0, &fringe);
+        let errs: Vec<f64> = (0..96 * 72)
+            .filter(|&i| truth[i].is_finite())
+            .map(|i| wrap(phase_and_modulation(&frames, i).0 - truth[i] as f64))
+            .collect();
+        (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt()
+    };
+    let (lin3, gam3, gam4) = (rms_error(1.0, 3), rms_error(2.2, 3), rms_error(2.2, 4));
+    eprintln!("phase error rms: 3-step gamma 1 {lin3:.4}, 3-step gamma 2.2 {gam3:.4}, 4-step gamma 2.2 {gam4:.4} rad");
+    assert!(lin3 < 0.01, "{lin3}");
+    assert!(gam3 > 0.1, "{gam3}");
+    assert!(gam4 < 0.02, "{gam4}");
+}

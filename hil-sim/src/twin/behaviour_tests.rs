@@ -154,6 +154,7 @@ fn colour_crosstalk_follows_the_sensor_matrix() {
             start_s: 0.0,
             end_s: 1e-3,
             led: [1.0, 0.0, 0.0],
+            display: Display::Steady,
         }],
     }];
     let m = [[0.90, 0.12, 0.03], [0.10, 0.85, 0.10], [0.03, 0.15, 0.88]];
@@ -230,4 +231,114 @@ fn metal_part_spans_50_to_1_and_saturates_on_highlights() {
         .iter()
         .fold((f32::MAX, 0.0f32), |(a, b), &x| (a.min(x), b.max(x)));
     assert!(hi / lo >= 49.9, "reflectivity range {}:1", hi / lo);
+}
+
+#[test]
+fn bad_patterns_and_timelines_are_typed_errors() {
+    let (scene, _) = tilted_plane();
+    let rig = Rig {
+        cameras: vec![camera(32, 24, Distortion::default())],
+        projectors: vec![projector(0.1, 40, 30)],
+        medium: Medium::Air,
+    };
+    let r = Renderer::new(&scene, &rig, 0, 0.0).unwrap();
+    let exp = Exposure {
+        start_s: 0.0,
+        end_s: 1e-3,
+    };
+    let wrong_size = vec![ProjectorTimeline::single(
+        Arc::new(Pattern::flat(41, 30, 1.0)),
+        0.0,
+        1e-3,
+    )];
+    assert!(matches!(
+        r.exposed(&wrong_size, exp),
+        Err(TwinError::PatternSize { got_w: 41, .. })
+    ));
+    let short = Pattern {
+        width: 40,
+        height: 30,
+        values: vec![0.5; 10],
+    };
+    let bad_buffer = vec![ProjectorTimeline::single(Arc::new(short), 0.0, 1e-3)];
+    assert!(matches!(
+        r.exposed(&bad_buffer, exp),
+        Err(TwinError::PatternBuffer { len: 10, .. })
+    ));
+    assert!(matches!(
+        r.exposed(&[], exp),
+        Err(TwinError::TimelineCount {
+            given: 0,
+            expected: 1
+        })
+    ));
+    let reversed = vec![ProjectorTimeline::single(
+        Arc::new(Pattern::flat(40, 30, 1.0)),
+        1e-3,
+        0.0,
+    )];
+    assert!(matches!(
+        r.exposed(&reversed, exp),
+        Err(TwinError::BadInterval { .. })
+    ));
+    assert!(matches!(
+        r.exposed(
+            &[ProjectorTimeline::dark()],
+            Exposure {
+                start_s: 0.0,
+                end_s: f64::NAN
+            }
+        ),
+        Err(TwinError::BadInterval { .. })
+    ));
+    assert!(matches!(
+        Renderer::new(&scene, &rig, 3, 0.0),
+        Err(TwinError::NoSuchCamera { index: 3, count: 1 })
+    ));
+}
+
+#[test]
+fn bit_planes_sum_to_the_grey_and_a_cut_window_sees_only_its_planes() {
+    let (scene, _) = tilted_plane();
+    let rig = Rig {
+        cameras: vec![camera(32, 24, Distortion::default())],
+        projectors: vec![projector(0.1, 40, 30)],
+        medium: Medium::Air,
+    };
+    let r = Renderer::new(&scene, &rig, 0, 0.0).unwrap();
+    let grey = Arc::new(Pattern::from_u8(40, 30, &vec![100u8; 1200]).unwrap());
+    let shown = |display| {
+        vec![ProjectorTimeline {
+            shown: vec![Shown {
+                pattern: grey.clone(),
+                start_s: 0.0,
+                end_s: 1e-3,
+                led: [1.0; 3],
+                display,
+            }],
+        }]
+    };
+    let total = |e: &Exposed| e.per_projector[0].iter().map(|p| p[0] as f64).sum::<f64>();
+    let whole = Exposure {
+        start_s: 0.0,
+        end_s: 1e-3,
+    };
+    let (steady, planes) = (
+        r.exposed(&shown(Display::Steady), whole).unwrap(),
+        r.exposed(&shown(Display::BitPlanes), whole).unwrap(),
+    );
+    assert!(
+        (total(&planes) / total(&steady) - 1.0).abs() < 1e-5,
+        "all 8 planes carry exactly the grey"
+    );
+    // 100 = 0b0110_0100: the MSB plane (first 128/255 of the interval) is dark.
+    let first_half = Exposure {
+        start_s: 0.0,
+        end_s: 0.5e-3,
+    };
+    assert!(total(&r.exposed(&shown(Display::Steady), first_half).unwrap()) > 0.0);
+    assert_eq!(
+        total(&r.exposed(&shown(Display::BitPlanes), first_half).unwrap()),
+        0.0
+    );
 }

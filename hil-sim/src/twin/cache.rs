@@ -120,6 +120,7 @@ impl CameraGeometry {
     /// Casts every pixel's ray into the posed scene and tests each projector.
     pub fn new(scene: &PosedScene, rig: &Rig, camera: usize) -> Result<CameraGeometry, TwinError> {
         rig.validate()?;
+        scene.scene().validate()?;
         let cam = rig.cameras.get(camera).ok_or(TwinError::NoSuchCamera {
             index: camera,
             count: rig.cameras.len(),

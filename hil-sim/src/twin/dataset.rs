@@ -3,7 +3,8 @@
 //!
 //! Kinds (one per network of the project):
 //! - `aliased` (seed 000): both heads project the same fringe at once;
-//!   camera A's aliased image, the clean image of each projector alone, and
+//!   camera A's aliased image (noisy), the noise-free image of ambient +
+//!   each projector alone (what a single-head reference run records), and
 //!   each projector's absolute phase.
 //! - `multiplexed` (seed 001): 24 binary patterns (8 directions x R/G/B)
 //!   at 5 kHz inside one 4.8 ms colour exposure; the 24 clean fringes (each

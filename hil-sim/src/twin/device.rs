@@ -203,6 +203,11 @@ pub struct Projector {
     /// Defocus: Gaussian blur of the displayed image, sigma in DMD pixels
     /// (what turns defocused binary patterns quasi-sinusoidal).
     pub defocus_sigma_px: f64,
+    /// Intensity response to a displayed grey value g in [0, 1]: g^gamma.
+    /// 1 for a DMD in pattern mode (time-multiplexed, linear); about 2.2
+    /// when patterns go through a video input. Its harmonics are what the
+    /// N-step choice of DESIGN.md must keep off the other head's bin.
+    pub gamma: f64,
     /// Distance at which `led_power` is the irradiance, metres (inverse-square falloff).
     pub reference_distance_m: f64,
 }
@@ -228,6 +233,7 @@ impl Rig {
             p.model.intrinsics.validate()?;
             positive("reference_distance_m", p.reference_distance_m)?;
             super::error::non_negative("defocus_sigma_px", p.defocus_sigma_px)?;
+            positive("projector gamma", p.gamma)?;
             for &l in &p.led_power {
                 super::error::non_negative("led_power", l)?;
             }

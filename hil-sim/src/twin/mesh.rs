@@ -573,3 +573,32 @@ mod tests {
         assert!((h.normal.z - 1.0).abs() < 1e-6);
     }
 }
+
+#[cfg(test)]
+mod proptests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+        /// Random triangle soups: the BVH's nearest hit and any-hit answer
+        /// agree with testing every triangle.
+        #[test]
+        fn bvh_agrees_with_brute_force_on_soups(
+            verts in proptest::collection::vec(proptest::array::uniform3(-1.0f32..1.0), 3..120),
+            ox in -2.0f64..2.0, oy in -2.0f64..2.0, tx in -1.0f64..1.0, ty in -1.0f64..1.0,
+        ) {
+            let n = verts.len() / 3;
+            let tris: Vec<[u32; 3]> = (0..n as u32).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+            let Ok(mesh) = Mesh::new(&verts, &tris) else { return Ok(()) };
+            let origin = V3::new(ox, oy, 3.0);
+            let ray = Ray { origin, dir: (V3::new(tx, ty, 0.0) - origin).normalize() };
+            let fast = mesh.intersect(&ray, 0.0, 100.0).map(|h| h.t_m as f32);
+            let o = [ox as f32, oy as f32, 3.0];
+            let d = [ray.dir.x as f32, ray.dir.y as f32, ray.dir.z as f32];
+            let slow = mesh.tris.iter().filter_map(|t| tri_hit(t, o, d, 0.0, 100.0)).fold(None, |b: Option<f32>, t| Some(b.map_or(t, |b| b.min(t))));
+            prop_assert_eq!(fast, slow);
+            prop_assert_eq!(mesh.occludes(&ray, 0.0, 100.0), slow.is_some());
+        }
+    }
+}

@@ -7,6 +7,7 @@
 //! Rig (cameras, projectors, medium) ──┼─> Renderer::new      (ray casting, shadows,
 //!                                     │    = CameraGeometry    projector coords: once per pose)
 //! ProjectorTimeline per projector ────┴─> Renderer::exposed  (pattern look-ups, cheap)
+//!   (TwinRig keeps one Renderer per camera while the scene is static)
 //!                                         -> SensorModel::expose (crosstalk, noise, ADC)
 //!                                         -> Frame { image, clean, per_projector_clean, truth }
 //! ```
@@ -71,7 +72,7 @@ pub use geometry::{Pose, Ray, Shape, V3};
 pub use medium::{Medium, Turbidity, Water};
 pub use mesh::Mesh;
 pub use mesh_io::load_mesh;
-pub use pattern::{BitDepth, Exposure, Fringe, Pattern, ProjectorTimeline, Shown};
+pub use pattern::{BitDepth, Display, Exposure, Fringe, Pattern, ProjectorTimeline, Shown};
 pub use render::{render_exposure, Exposed, Frame, Renderer};
 pub use scene::{Albedo, Checkerboard, Material, Motion, Object, Scene, Texture};
 pub use sensor::{Channels, Image, SensorModel};

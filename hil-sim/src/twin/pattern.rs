@@ -267,6 +267,48 @@ pub(crate) fn transpose(src: &[f32], w: usize, h: usize) -> Vec<f32> {
     out
 }
 
+/// How a DMD spreads a grey pattern over its display interval.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Display {
+    /// Constant intensity over the interval (binary patterns, or grey
+    /// treated as steady light).
+    #[default]
+    Steady,
+    /// 8-bit grey as 8 binary bit planes, most significant first, plane k
+    /// on for 2^k / 255 of the interval (how DLPC-class controllers show
+    /// an 8-bit pattern): a window that cuts the interval sees only the
+    /// planes inside it, not a proportional share of the grey.
+    BitPlanes,
+}
+
+/// Bit planes of an 8-bit pattern shown over `[start_s, end_s)`, MSB
+/// first: (bit, plane start, plane end).
+pub fn bit_plane_intervals(start_s: f64, end_s: f64) -> [(u8, f64, f64); 8] {
+    let dur = end_s - start_s;
+    let mut t = start_s;
+    [7u8, 6, 5, 4, 3, 2, 1, 0].map(|k| {
+        let a = t;
+        t += dur * (1u32 << k) as f64 / 255.0;
+        (k, a, t)
+    })
+}
+
+impl Pattern {
+    /// Bit `k` of the pattern's 8-bit grey levels as a binary pattern.
+    pub fn bit_plane(&self, k: u8) -> Pattern {
+        let values = self
+            .values
+            .iter()
+            .map(|&v| (((v.clamp(0.0, 1.0) * 255.0 + 0.5) as u32 >> k) & 1) as f32)
+            .collect();
+        Pattern {
+            width: self.width,
+            height: self.height,
+            values,
+        }
+    }
+}
+
 /// One pattern on screen for a time interval, with its LED drive.
 #[derive(Clone, Debug)]
 pub struct Shown {
@@ -279,6 +321,8 @@ pub struct Shown {
     /// LED drive per band (R, G, B) in [0, 1]: white = [1, 1, 1], a
     /// colour-multiplexed binary frame lights one LED.
     pub led: [f32; 3],
+    /// Steady light or 8-bit bit planes.
+    pub display: Display,
 }
 
 /// Everything one projector displayed, in time order or not.
@@ -302,6 +346,7 @@ impl ProjectorTimeline {
                 start_s,
                 end_s,
                 led: [1.0; 3],
+                display: Display::Steady,
             }],
         }
     }
@@ -320,6 +365,7 @@ impl ProjectorTimeline {
                 start_s: start_s + i as f64 * period_s,
                 end_s: start_s + (i + 1) as f64 * period_s,
                 led,
+                display: Display::Steady,
             })
             .collect();
         ProjectorTimeline { shown }
@@ -433,5 +479,41 @@ mod tests {
         }
         .validate()
         .is_err());
+    }
+}
+
+#[cfg(test)]
+mod proptests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Slow reference: bilinear interpolation written from the definition
+    /// (pixel centres at integers, edge pixels extended half a pixel).
+    fn sample_ref(p: &Pattern, u: f32, v: f32) -> f32 {
+        let (w, h) = (p.width as f64, p.height as f64);
+        let (u, v) = (u as f64, v as f64);
+        if u < -0.5 || v < -0.5 || u >= w - 0.5 || v >= h - 0.5 {
+            return 0.0;
+        }
+        let (u, v) = (u.clamp(0.0, w - 1.0), v.clamp(0.0, h - 1.0));
+        let mut acc = 0.0;
+        for y in 0..p.height as i64 {
+            for x in 0..p.width as i64 {
+                let wx = (1.0 - (u - x as f64).abs()).max(0.0);
+                let wy = (1.0 - (v - y as f64).abs()).max(0.0);
+                acc += wx * wy * p.values[(y * p.width as i64 + x) as usize] as f64;
+            }
+        }
+        acc as f32
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+        #[test]
+        fn sample_matches_reference(w in 1u32..9, h in 1u32..9, seed in 0u64..1000, u in -1.0f32..10.0, v in -1.0f32..10.0) {
+            let values: Vec<f32> = (0..w * h).map(|i| ((i as u64 * 7919 + seed) % 256) as f32 / 255.0).collect();
+            let p = Pattern { width: w, height: h, values };
+            prop_assert!((p.sample(u, v) - sample_ref(&p, u, v)).abs() < 1e-5);
+        }
     }
 }

@@ -12,7 +12,7 @@ use super::cache::CameraGeometry;
 use super::device::Rig;
 use super::error::TwinError;
 use super::medium::Medium;
-use super::pattern::{Exposure, Pattern, ProjectorTimeline, Tap};
+use super::pattern::{bit_plane_intervals, Display, Exposure, Pattern, ProjectorTimeline, Tap};
 use super::scatter::blur_varying;
 use super::scene::Scene;
 use super::sensor::{Image, SensorModel};
@@ -95,8 +95,8 @@ pub struct Renderer {
     defocus_cache: Mutex<Vec<DefocusEntry>>,
 }
 
-/// (shown pattern, projector index, its defocused image).
-type DefocusEntry = (Arc<Pattern>, usize, Arc<Pattern>);
+/// (shown pattern, projector index, bit plane or whole, its defocused image).
+type DefocusEntry = (Arc<Pattern>, usize, Option<u8>, Arc<Pattern>);
 
 /// Defocused patterns kept per renderer (a 24-pattern sequence for two projectors fits).
 const DEFOCUS_CACHE: usize = 64;
@@ -162,14 +162,40 @@ impl Renderer {
                         want_h: k.height,
                     });
                 }
-                let dt = exposure.overlap_s(s.start_s, s.end_s);
-                if dt > 0.0 {
-                    let weight = s.led.map(|l| l * dt as f32);
-                    let mean = s.pattern.mean() as f64;
-                    for b in 0..3 {
-                        mean_drive[b] += weight[b] as f64 * mean;
+                // Fields are public: a hand-made pattern may not match its size.
+                if s.pattern.values.len() != k.width as usize * k.height as usize {
+                    return Err(TwinError::PatternBuffer {
+                        len: s.pattern.values.len(),
+                        width: k.width,
+                        height: k.height,
+                    });
+                }
+                if s.led.iter().any(|l| !(l.is_finite() && *l >= 0.0)) {
+                    return Err(TwinError::BadParameter {
+                        name: "LED drive",
+                        value: s.led.iter().map(|&l| l as f64).fold(f64::NAN, f64::min),
+                        why: "must be finite and >= 0",
+                    });
+                }
+                // (plane, interval): the whole pattern, or each of its bit planes.
+                let parts: Vec<(Option<u8>, f64, f64)> = match s.display {
+                    Display::Steady => vec![(None, s.start_s, s.end_s)],
+                    Display::BitPlanes => bit_plane_intervals(s.start_s, s.end_s)
+                        .iter()
+                        .map(|&(k, a, b)| (Some(k), a, b))
+                        .collect(),
+                };
+                for (plane, a, b) in parts {
+                    let dt = exposure.overlap_s(a, b);
+                    if dt > 0.0 {
+                        let weight = s.led.map(|l| l * dt as f32);
+                        let lit = self.defocused(&s.pattern, pi, plane);
+                        let mean = lit.mean() as f64;
+                        for b in 0..3 {
+                            mean_drive[b] += weight[b] as f64 * mean;
+                        }
+                        active.push((lit, weight));
                     }
-                    active.push((self.defocused(&s.pattern, pi), weight));
                 }
             }
             let view = &g.projectors[pi];
@@ -239,20 +265,33 @@ impl Renderer {
         })
     }
 
-    /// The pattern as projector `pi`'s lens puts it on the scene (cached).
-    fn defocused(&self, pattern: &Arc<Pattern>, pi: usize) -> Arc<Pattern> {
+    /// The pattern as projector `pi` puts it on the scene: its gamma, then
+    /// its lens defocus (cached).
+    fn defocused(&self, pattern: &Arc<Pattern>, pi: usize, plane: Option<u8>) -> Arc<Pattern> {
         let mut cache = self.defocus_cache.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, _, d)) = cache
+        if let Some((_, _, _, d)) = cache
             .iter()
-            .find(|(p, i, _)| *i == pi && Arc::ptr_eq(p, pattern))
+            .find(|(p, i, k, _)| *i == pi && *k == plane && Arc::ptr_eq(p, pattern))
         {
             return d.clone();
         }
-        let d = Arc::new(pattern.defocused(self.rig.projectors[pi].defocus_sigma_px));
+        let proj = &self.rig.projectors[pi];
+        // Gamma acts on the displayed grey level, before the lens blurs it.
+        let mut shown = match plane {
+            Some(k) => pattern.bit_plane(k),
+            None => (**pattern).clone(),
+        };
+        if proj.gamma != 1.0 {
+            shown
+                .values
+                .iter_mut()
+                .for_each(|v| *v = v.max(0.0).powf(proj.gamma as f32));
+        }
+        let d = Arc::new(shown.defocused(proj.defocus_sigma_px));
         if cache.len() >= DEFOCUS_CACHE {
             cache.remove(0);
         }
-        cache.push((pattern.clone(), pi, d.clone()));
+        cache.push((pattern.clone(), pi, plane, d.clone()));
         d
     }
 

@@ -3,6 +3,7 @@
 use nalgebra::{Matrix3, Point3, Translation3, Unit, UnitQuaternion};
 use std::sync::Arc;
 
+use super::error::{non_negative, positive, TwinError};
 use super::geometry::{LocalHit, Pose, Ray, Shape, V3};
 
 /// An RGB texture mapped onto the local x-y plane of its object.
@@ -280,7 +281,106 @@ impl PosedScene<'_> {
     }
 }
 
+impl Albedo {
+    /// Rejects empty colour lists, textures whose buffer does not match
+    /// their size, and non-positive sizes.
+    pub fn validate(&self) -> Result<(), TwinError> {
+        match self {
+            Albedo::Constant(_) => Ok(()),
+            Albedo::Checker(b) => {
+                positive("checker square_m", b.square_m)?;
+                positive("checker squares", (b.squares_x.min(b.squares_y)) as f64)?;
+                Ok(())
+            }
+            Albedo::Texture(t) => {
+                positive("texture width", t.width as f64)?;
+                positive("texture height", t.height as f64)?;
+                positive("texture size_m", t.size_m[0].min(t.size_m[1]))?;
+                if t.rgb.len() != t.width as usize * t.height as usize {
+                    return Err(TwinError::BadParameter {
+                        name: "texture texels",
+                        value: t.rgb.len() as f64,
+                        why: "must be width * height",
+                    });
+                }
+                Ok(())
+            }
+            Albedo::Sectors(cs) => positive("sector colours", cs.len() as f64).map(|_| ()),
+            Albedo::Stripes { period_m, colours } => {
+                positive("stripe period_m", *period_m)?;
+                positive("stripe colours", colours.len() as f64).map(|_| ())
+            }
+        }
+    }
+}
+
+impl Shape {
+    /// Rejects non-positive or non-finite sizes.
+    pub fn validate(&self) -> Result<(), TwinError> {
+        match self {
+            Shape::Rect { half_x_m, half_y_m } => {
+                positive("rect half size", half_x_m.min(*half_y_m)).map(|_| ())
+            }
+            Shape::Sphere { radius_m } => positive("sphere radius_m", *radius_m).map(|_| ()),
+            Shape::Cuboid { half_m } => positive("cuboid half size", half_m.min()).map(|_| ()),
+            Shape::Mesh(_) => Ok(()), // validated when built
+        }
+    }
+}
+
 impl Scene {
+    /// Checks every object (shape, albedo, finite pose and motion) and the
+    /// ambient terms; the renderer calls it before casting rays.
+    pub fn validate(&self) -> Result<(), TwinError> {
+        if self.objects.len() >= u16::MAX as usize {
+            return Err(TwinError::BadParameter {
+                name: "object count",
+                value: self.objects.len() as f64,
+                why: "must be < 65535",
+            });
+        }
+        for o in &self.objects {
+            o.shape.validate()?;
+            o.material.albedo.validate()?;
+            let p = o.pose.to_homogeneous();
+            let motion_ok = match o.motion {
+                Motion::Static => true,
+                Motion::Spin {
+                    centre_m,
+                    axis,
+                    rate_rad_s,
+                } => {
+                    centre_m.iter().all(|c| c.is_finite())
+                        && axis.norm() > 0.0
+                        && axis.iter().all(|c| c.is_finite())
+                        && rate_rad_s.is_finite()
+                }
+                Motion::Ballistic {
+                    velocity_m_s,
+                    accel_m_s2,
+                } => velocity_m_s
+                    .iter()
+                    .chain(accel_m_s2.iter())
+                    .all(|c| c.is_finite()),
+            };
+            if !p.iter().all(|c| c.is_finite()) || !motion_ok {
+                return Err(TwinError::BadParameter {
+                    name: "object pose/motion",
+                    value: f64::NAN,
+                    why: "must be finite (and a spin axis non-zero)",
+                });
+            }
+            non_negative("material specular", o.material.specular as f64)?;
+            for a in o.material.ambient {
+                non_negative("material ambient", a as f64)?;
+            }
+        }
+        for a in self.ambient_surface.iter().chain(&self.ambient_direct) {
+            non_negative("scene ambient", *a)?;
+        }
+        Ok(())
+    }
+
     /// Whether any object moves.
     pub fn is_dynamic(&self) -> bool {
         self.objects
@@ -390,6 +490,37 @@ mod tests {
         };
         let p = o.pose_at(0.5).translation.vector;
         assert!((p - V3::new(0.0, 0.1, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn bad_scenes_are_errors_not_panics() {
+        let ok = Object::new(
+            "s",
+            Shape::Sphere { radius_m: 0.1 },
+            Material::matte(Albedo::Constant([1.0; 3])),
+            Pose::identity(),
+        );
+        let mut s = Scene {
+            objects: vec![ok.clone()],
+            ..Default::default()
+        };
+        assert!(s.validate().is_ok());
+        s.objects[0].material.albedo = Albedo::Sectors(vec![]);
+        assert!(s.validate().is_err());
+        s.objects[0] = Object::new(
+            "s",
+            Shape::Sphere { radius_m: f64::NAN },
+            ok.material.clone(),
+            Pose::identity(),
+        );
+        assert!(s.validate().is_err());
+        s.objects[0] = Object::new(
+            "s",
+            Shape::Sphere { radius_m: 0.1 },
+            ok.material.clone(),
+            Pose::translation(f64::NAN, 0.0, 0.0),
+        );
+        assert!(s.validate().is_err());
     }
 
     #[test]

@@ -157,6 +157,7 @@ fn projector(name: &str, detail: &Detail, eye: V3, target: V3) -> Projector {
         },
         led_power: [1.0, 1.0, 1.0],
         defocus_sigma_px: 0.8,
+        gamma: 1.0,
         reference_distance_m: 0.5,
     }
 }

@@ -125,6 +125,13 @@ impl SensorModel {
     /// Rejects non-physical numbers.
     pub fn validate(&self) -> Result<(), TwinError> {
         positive("electrons_per_unit", self.electrons_per_unit)?;
+        let weights: Vec<f64> = match self.channels {
+            Channels::Mono(w) => w.to_vec(),
+            Channels::Rgb(m) => m.iter().flatten().copied().collect(),
+        };
+        for w in weights {
+            non_negative("channel sensitivity", w)?;
+        }
         positive("full_well_e", self.full_well_e)?;
         non_negative("read_noise_e", self.read_noise_e)?;
         positive("gain", self.gain)?;

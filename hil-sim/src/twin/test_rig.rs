@@ -27,6 +27,7 @@ pub(super) fn projector(x_m: f64, w: u32, h: u32) -> Projector {
         },
         led_power: [1.0, 1.0, 1.0],
         defocus_sigma_px: 0.0,
+        gamma: 1.0,
         reference_distance_m: 0.5,
     }
 }
