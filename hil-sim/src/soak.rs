@@ -75,6 +75,12 @@ pub struct SoakTotals {
     pub out_of_window: u64,
     /// Patterns inside their exposure, but by less than the plan's margin.
     pub inside_margin: u64,
+    /// Patterns the board itself judged from its captures.
+    pub patterns_checked: u64,
+    /// ... that it found outside their exposure (`ScanReport::out_of_window`).
+    pub measured_out_of_window: u64,
+    /// Patterns the board dropped unchecked (queue full).
+    pub patterns_unchecked: u64,
 }
 
 impl SoakTotals {
@@ -101,6 +107,9 @@ impl SoakTotals {
         self.patterns += other.patterns;
         self.out_of_window += other.out_of_window;
         self.inside_margin += other.inside_margin;
+        self.patterns_checked += other.patterns_checked;
+        self.measured_out_of_window += other.measured_out_of_window;
+        self.patterns_unchecked += other.patterns_unchecked;
     }
 }
 
@@ -288,6 +297,9 @@ fn add_report(totals: &mut SoakTotals, report: &ScanReport) {
     totals.feedback_late += report.late as u64;
     totals.feedback_unexpected += report.unexpected as u64;
     totals.worst_feedback_error_ticks = report.worst_error_ticks as u64;
+    totals.patterns_checked += report.patterns_checked as u64;
+    totals.measured_out_of_window += report.out_of_window as u64;
+    totals.patterns_unchecked += report.patterns_unchecked as u64;
 }
 
 /// The plan's output edges, expanded independently of `EdgeTable`: every
@@ -420,6 +432,12 @@ mod tests {
                 (0, 0, 0),
                 "example {i}: {t:?}"
             );
+            assert_eq!(t.patterns_checked, t.patterns, "example {i}: {t:?}");
+            assert_eq!(
+                t.measured_out_of_window + t.patterns_unchecked,
+                0,
+                "example {i}: {t:?}"
+            );
             assert!(t.output_edges > 0 && t.patterns > 0 && t.feedback_expected == t.output_edges);
         }
     }
@@ -463,6 +481,25 @@ mod tests {
             "{t:?}"
         );
         assert_eq!(t.output_mismatches, 0);
+    }
+
+    #[test]
+    fn the_boards_window_check_agrees_with_device_ground_truth() {
+        let faults = DeviceFaults {
+            camera_miss: None,
+            jitter_scale: 10,
+        };
+        let mut all = SoakTotals::default();
+        for i in 0..300 {
+            all.merge(&soak_scan(3, i, &faults).unwrap());
+        }
+        assert_eq!(all.patterns_checked, all.patterns, "{all:?}");
+        assert!(all.out_of_window > 100, "{all:?}");
+        // The board sees captures rounded to 5.9 ns ticks, the devices log
+        // nanoseconds: only patterns within a tick of an exposure edge may
+        // be judged differently.
+        let diff = all.measured_out_of_window.abs_diff(all.out_of_window);
+        assert!(diff * 100 <= all.out_of_window, "{all:?}");
     }
 
     #[test]

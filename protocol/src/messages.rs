@@ -179,6 +179,14 @@ pub struct ScanReport {
     pub worst_error_ticks: u32,
     /// Events that did not fit the event queue (counters stay exact).
     pub events_dropped: u32,
+    /// Patterns whose measured light was compared with their measured
+    /// exposure (both feedback lines seen).
+    pub patterns_checked: u32,
+    /// ... whose light was not entirely inside the exposure.
+    pub out_of_window: u32,
+    /// Patterns dropped unchecked because too many waited for their
+    /// exposure's end.
+    pub patterns_unchecked: u32,
 }
 
 /// State, time and counters of the board.
@@ -273,6 +281,23 @@ pub enum Event {
         level: Level,
         /// Captured board tick.
         measured_tick: u64,
+    },
+    /// A pattern's measured light (projector trigger-out rise + display
+    /// time) was not entirely inside its measured exposure (camera
+    /// exposure-active).
+    PatternOutsideExposure {
+        /// Head index (0 = A).
+        head: u8,
+        /// Cycle number.
+        cycle: u32,
+        /// Exposure index in the cycle.
+        exposure: u16,
+        /// Slot index in the plan's slot list.
+        slot: u16,
+        /// Measured light, board ticks (start, end).
+        light_ticks: (u64, u64),
+        /// Measured exposure, board ticks (start, end).
+        exposure_ticks: (u64, u64),
     },
     /// The trigger hardware faulted; the scan stops (`ScanFinished` follows).
     HardwareFault {

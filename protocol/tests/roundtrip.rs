@@ -127,10 +127,11 @@ proptest! {
     }
 
     #[test]
-    fn reports_and_events_roundtrip(counts in any::<[u32; 8]>(), tick in any::<u64>(), id in any::<u32>()) {
+    fn reports_and_events_roundtrip(counts in any::<[u32; 11]>(), tick in any::<u64>(), id in any::<u32>()) {
         let report = ScanReport {
             cycles: counts[0], expected: counts[1], on_time: counts[2], late: counts[3],
             missing: counts[4], unexpected: counts[5], worst_error_ticks: counts[6], events_dropped: counts[7],
+            patterns_checked: counts[8], out_of_window: counts[9], patterns_unchecked: counts[10],
         };
         let frames = [
             BoardFrame::Response { id, response: Response::Status(BoardStatus {

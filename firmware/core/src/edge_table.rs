@@ -17,6 +17,16 @@ pub struct Edge {
     pub channel: u8,
     /// Level after the edge.
     pub level: Level,
+    /// Index, in the cycle, of the exposure the edge belongs to.
+    pub exposure: u16,
+    /// For a projector edge, the index of its slot in `ScanPlan::slots`;
+    /// [`Edge::NO_SLOT`] for a camera edge.
+    pub slot: u16,
+}
+
+impl Edge {
+    /// `slot` of a camera edge.
+    pub const NO_SLOT: u16 = u16::MAX;
 }
 
 /// One cycle of edges sorted by (tick, channel), with the cycle's period and
@@ -79,16 +89,19 @@ impl EdgeTable {
                     continue;
                 }
                 let cam = head.camera_trigger_channel;
-                self.pulse(cam, ticks_u32(start, hz, cam)?, ticks_u32(end, hz, cam)?)?;
+                let (rise, fall) = (ticks_u32(start, hz, cam)?, ticks_u32(end, hz, cam)?);
+                let owner = (exposure.index as u16, Edge::NO_SLOT);
+                self.pulse(cam, rise, fall, owner)?;
                 let pulse_ns = head.projector.profile().trigger_pulse_ns as u64;
                 let proj = head.projector_trigger_channel;
-                for slot in exposure.slots {
+                for (k, slot) in exposure.slots.iter().enumerate() {
                     let rise = start + slot.offset_ns as u64;
-                    self.pulse(
-                        proj,
+                    let (rise, fall) = (
                         ticks_u32(rise, hz, proj)?,
                         ticks_u32(rise + pulse_ns, hz, proj)?,
-                    )?;
+                    );
+                    let owner = (exposure.index as u16, e.first_slot + k as u16);
+                    self.pulse(proj, rise, fall, owner)?;
                 }
             }
         }
@@ -96,7 +109,15 @@ impl EdgeTable {
         self.check_channels(valid.board().min_edge_spacing_ticks)
     }
 
-    fn pulse(&mut self, channel: u8, rise: u32, fall: u32) -> Result<(), WireError> {
+    /// A High-then-Low pair on `channel`, owned by (exposure, slot).
+    fn pulse(
+        &mut self,
+        channel: u8,
+        rise: u32,
+        fall: u32,
+        owner: (u16, u16),
+    ) -> Result<(), WireError> {
+        let (exposure, slot) = owner;
         let overflow = WireError::EdgeTable {
             channel,
             tick: rise,
@@ -109,6 +130,8 @@ impl EdgeTable {
                 tick: rise,
                 channel,
                 level: Level::High,
+                exposure,
+                slot,
             })
             .map_err(|_| overflow)?;
         self.edges
@@ -116,6 +139,8 @@ impl EdgeTable {
                 tick: fall,
                 channel,
                 level: Level::Low,
+                exposure,
+                slot,
             })
             .map_err(|_| overflow)
     }

@@ -23,27 +23,42 @@ pub struct FeedbackLine {
     /// Largest |measured - expected| counted as on time: the device's peak
     /// jitter plus one tick of rounding.
     pub tolerance_ticks: u32,
+    /// Head index (0 = A).
+    pub head: u8,
+    /// Which device of the head answers on this line.
+    pub role: LineRole,
+}
+
+/// The device behind a feedback line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LineRole {
+    /// Projector trigger-out: rises when a pattern appears.
+    Projector,
+    /// Camera exposure-active: high while the sensor integrates.
+    Camera,
 }
 
 /// The feedback lines of a plan: per head, projector then camera.
 pub fn feedback_lines(plan: &ValidPlan) -> heapless::Vec<FeedbackLine, MAX_OUTPUT_CHANNELS> {
     let hz = plan.timer_clock_hz();
     let mut lines = heapless::Vec::new();
-    for head in plan.plan().heads.iter() {
+    for (h, head) in plan.plan().heads.iter().enumerate() {
         let p = head.projector.profile();
         let c = head.camera.profile();
-        for (out, fb, latency, jitter) in [
+        for (out, fb, latency, jitter, role) in [
             (
                 head.projector_trigger_channel,
                 head.projector_feedback_channel,
                 p.latency_ns,
                 p.jitter_ns,
+                LineRole::Projector,
             ),
             (
                 head.camera_trigger_channel,
                 head.camera_feedback_channel,
                 c.latency_ns,
                 c.jitter_ns,
+                LineRole::Camera,
             ),
         ] {
             // MAX_HEADS * 2 <= MAX_OUTPUT_CHANNELS, so this never fails.
@@ -52,6 +67,8 @@ pub fn feedback_lines(plan: &ValidPlan) -> heapless::Vec<FeedbackLine, MAX_OUTPU
                 feedback_channel: fb,
                 latency_ticks: ns_to_ticks(latency as u64, hz) as u32,
                 tolerance_ticks: ns_to_ticks(jitter as u64, hz) as u32 + 1,
+                head: h as u8,
+                role,
             });
         }
     }
@@ -67,6 +84,11 @@ pub struct Expected {
     pub level: Level,
     /// Cycle number.
     pub cycle: u32,
+    /// Exposure (index in the cycle) the edge belongs to.
+    pub exposure: u16,
+    /// Slot (index in `ScanPlan::slots`) of a projector edge, else
+    /// `Edge::NO_SLOT`.
+    pub slot: u16,
 }
 
 /// Position in one line's expected edges.
@@ -140,6 +162,8 @@ impl LineCursor {
                 + line.latency_ticks as u64,
             level: e.level,
             cycle: self.cycle,
+            exposure: e.exposure,
+            slot: e.slot,
         })
     }
 

@@ -19,6 +19,7 @@ pub mod feedback;
 pub mod hardware;
 pub mod link;
 pub mod sequencer;
+pub mod window_check;
 
 pub use edge_table::{Edge, EdgeTable};
 pub use hardware::{Capture, TriggerHardware};

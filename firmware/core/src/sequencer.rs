@@ -6,12 +6,13 @@
 //! [`LineCursor`] per feedback line, and queues events for the link.
 
 use heapless::{Deque, Vec};
-use protocol::limits::MAX_OUTPUT_CHANNELS;
+use protocol::limits::{MAX_OUTPUT_CHANNELS, MAX_SLOTS_PER_EXPOSURE};
 use protocol::{Event, HardwareFault, Level, ScanReport, ScanState, ValidPlan, WireError};
 
 use crate::edge_table::EdgeTable;
-use crate::feedback::{feedback_lines, FeedbackLine, LineCursor};
+use crate::feedback::{feedback_lines, Expected, FeedbackLine, LineCursor, LineRole};
 use crate::hardware::{Capture, TriggerHardware};
+use crate::window_check::{ExposureKey, PatternVerdict, WindowCheck};
 
 /// Events held between two link polls; overflow is counted in
 /// `ScanReport::events_dropped`.
@@ -28,6 +29,7 @@ pub struct Sequencer {
     start_tick: u64,
     report: ScanReport,
     events: Deque<Event, EVENT_QUEUE>,
+    windows: WindowCheck,
 }
 
 impl Default for Sequencer {
@@ -55,8 +57,12 @@ impl Sequencer {
                 unexpected: 0,
                 worst_error_ticks: 0,
                 events_dropped: 0,
+                patterns_checked: 0,
+                out_of_window: 0,
+                patterns_unchecked: 0,
             },
             events: Deque::new(),
+            windows: WindowCheck::new(),
         }
     }
 
@@ -98,6 +104,7 @@ impl Sequencer {
         self.loaded = false;
         self.table.compile_from(plan)?;
         self.lines = feedback_lines(plan);
+        self.windows.load(plan);
         self.loaded = true;
         self.set_state(ScanState::Idle, 0);
         Ok(())
@@ -139,6 +146,7 @@ impl Sequencer {
             cycles: self.table.repeat_count(),
             ..ScanReport::default()
         };
+        self.windows.reset();
         self.cursors.clear();
         for line in &self.lines {
             // `cursors` has the same capacity as `lines`.
@@ -267,9 +275,48 @@ impl Sequencer {
                     });
                 }
                 self.cursors[i].advance(&self.table, &line);
+                self.check_window(&line, &e, c.tick);
                 return;
             }
             self.missing(i, e.level, e.cycle, e.tick);
+        }
+    }
+
+    /// Feeds a matched feedback edge to the pattern-in-exposure check and
+    /// reports its verdicts.
+    fn check_window(&mut self, line: &FeedbackLine, e: &Expected, tick: u64) {
+        let key = ExposureKey {
+            head: line.head,
+            cycle: e.cycle,
+            exposure: e.exposure,
+        };
+        let mut verdicts: Vec<PatternVerdict, MAX_SLOTS_PER_EXPOSURE> = Vec::new();
+        let mut collect = |v: PatternVerdict| {
+            // At most one exposure's patterns resolve at once.
+            let _ = verdicts.push(v);
+        };
+        match (line.role, e.level) {
+            (LineRole::Camera, level) => self.windows.camera(key, level, tick, &mut collect),
+            (LineRole::Projector, Level::High) => {
+                if self.windows.projector_rise(key, e.slot, tick, &mut collect) {
+                    self.report.patterns_unchecked += 1;
+                }
+            }
+            (LineRole::Projector, Level::Low) => {}
+        }
+        for v in verdicts {
+            self.report.patterns_checked += 1;
+            if !v.inside() {
+                self.report.out_of_window += 1;
+                self.push_event(Event::PatternOutsideExposure {
+                    head: v.key.head,
+                    cycle: v.key.cycle,
+                    exposure: v.key.exposure,
+                    slot: v.slot,
+                    light_ticks: v.light,
+                    exposure_ticks: v.window,
+                });
+            }
         }
     }
 

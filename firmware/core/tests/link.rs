@@ -441,6 +441,46 @@ fn early_feedback_is_attributed_not_missing() {
 }
 
 #[test]
+fn a_pattern_outside_its_measured_exposure_is_reported() {
+    // Start tick 17 000 (the 100 us floor). The last pattern's light ends
+    // 255 ticks before the exposure's: an exposure-active fall 200 ticks
+    // early keeps it inside...
+    let early_fall = |t: u64, ch: u8, level: Level| {
+        Some(if (ch, level) == (1, Level::Low) {
+            t - 200
+        } else {
+            t
+        })
+    };
+    let (report, _) = scripted_scan(early_fall);
+    assert_eq!(
+        (report.patterns_checked, report.out_of_window),
+        (24, 0),
+        "{report:?}"
+    );
+    // ... but not if the last trigger-out also rises 100 ticks late.
+    let (report, events) = scripted_scan(|t, ch, level| {
+        let late = (ch, level) == (0, Level::High) && t > 17_000 + 782_000;
+        early_fall(t, ch, level).map(|t| if late { t + 100 } else { t })
+    });
+    assert_eq!(
+        (report.patterns_checked, report.out_of_window),
+        (24, 1),
+        "{report:?}"
+    );
+    assert!(events.iter().any(|e| matches!(
+        e,
+        Event::PatternOutsideExposure {
+            head: 0,
+            cycle: 0,
+            exposure: 0,
+            slot: 23,
+            ..
+        }
+    )));
+}
+
+#[test]
 fn a_hardware_fault_stops_the_scan() {
     let mut b = Bench::new();
     b.upload(&examples::flood_preliminaries(1));

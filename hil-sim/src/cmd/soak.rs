@@ -90,6 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         + totals.feedback_unexpected
         + totals.output_mismatches
         + totals.out_of_window
+        + totals.measured_out_of_window
         + totals.device_missed
         + (totals.scans - totals.done);
     if failed > 0 && !injected {
@@ -138,5 +139,9 @@ fn print_report(args: &Args, threads: usize, t: &SoakTotals, seconds: f64) {
     println!("triggers missed by devices {:>14}", t.device_missed);
     println!("patterns shown             {:>14}", t.patterns);
     println!("patterns out of window     {:>14}", t.out_of_window);
+    println!(
+        "board's own window check   {:>14}  patterns judged from captures, {} outside, {} unchecked",
+        t.patterns_checked, t.measured_out_of_window, t.patterns_unchecked
+    );
     println!("patterns inside < margin   {:>14}", t.inside_margin);
 }
