@@ -584,6 +584,41 @@ mod tests {
         assert!(b_safe < b_design / 5.0, "{b_safe} vs {b_design}");
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+        /// Any valid (N, k_a, k_b) separates ideal sinusoids exactly, and
+        /// the table-driven kernel equals a direct DFT of the two bins.
+        #[test]
+        fn any_valid_bins_separate(
+            steps in 5usize..17,
+            ka in 1usize..8,
+            kb in 1usize..8,
+            pa in -3.1f64..3.1,
+            pb in -3.1f64..3.1,
+            ba in 0.01f64..1.0,
+            bb in 0.01f64..1.0,
+        ) {
+            let Ok(bins) = TemporalBins::new(steps, ka, kb, &[]) else {
+                return Ok(());
+            };
+            let s = samples(bins, (pa, pb), sine(ba), sine(bb));
+            let p = Demultiplexer::new(bins).pixel(&s);
+            proptest::prop_assert!(wrap(p.phase_a_rad - pa).abs() < 1e-9);
+            proptest::prop_assert!(wrap(p.phase_b_rad - pb).abs() < 1e-9);
+            proptest::prop_assert!((p.modulation_a - ba).abs() < 1e-9);
+            proptest::prop_assert!((p.modulation_b - bb).abs() < 1e-9);
+            for (k, phase, modulation) in [(ka, p.phase_a_rad, p.modulation_a), (kb, p.phase_b_rad, p.modulation_b)] {
+                let (re, im) = s.iter().enumerate().fold((0.0, 0.0), |(re, im), (n, v)| {
+                    let d = TAU * (k * n) as f64 / steps as f64;
+                    (re + v * d.cos(), im - v * d.sin())
+                });
+                // sum I e^{-i d} = re + i im, and phi = atan2(-sum I sin d, sum I cos d) = atan2(im, re).
+                proptest::prop_assert!(wrap(phase - im.atan2(re)).abs() < 1e-12);
+                proptest::prop_assert!((modulation - 2.0 / steps as f64 * re.hypot(im)).abs() < 1e-12);
+            }
+        }
+    }
+
     #[test]
     fn bad_frames_are_errors() {
         let demux = Demultiplexer::new(TemporalBins::design_default());

@@ -9,11 +9,10 @@
 //! each iteration down to its final value, so far pairs help at the start
 //! and the fine result sees only the true overlap.
 
-use kiddo::SquaredEuclidean;
 use nalgebra::{Isometry3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 
-use super::{build_tree, FusionError, PointCloud, Tree};
+use super::{build_tree, nearest_within, FusionError, PointCloud, Tree};
 
 /// Robust weighting of the point-to-plane residuals. Thresholds are in units
 /// of the robust scale `sigma = 1.4826 * median(|r|)` (floored at
@@ -321,15 +320,7 @@ impl<'a> IcpTarget<'a> {
             .par_iter()
             .filter_map(|p| {
                 let q = transform.transform_point(&Point3::from(*p)).coords;
-                let nn = self
-                    .tree
-                    .query(&[q.x, q.y, q.z])
-                    .nearest_one::<SquaredEuclidean<f64>>()
-                    .execute();
-                if nn.distance > gate2 {
-                    return None;
-                }
-                let j = nn.item as usize;
+                let (j, _) = nearest_within(&self.tree, &q, gate2)?;
                 let n = self.normals[j];
                 Some(Pair {
                     q,
@@ -577,6 +568,15 @@ mod tests {
         assert!(matches!(
             register(&tiny, &scene.a, &initial, &params()),
             Err(FusionError::TooFewPoints { points: 10, .. })
+        ));
+        // A 5 mm start error cannot be corrected inside a 1 mm leash.
+        let leash = IcpParams {
+            max_correction_translation_m: 1e-3,
+            ..params()
+        };
+        assert!(matches!(
+            register(&scene.b, &scene.a, &initial, &leash),
+            Err(FusionError::Diverged { iteration: 0, .. })
         ));
         let bad = IcpParams {
             final_gate_m: 1.0,

@@ -7,11 +7,10 @@
 //! point per surface sample there; B points with no A point near them are
 //! kept as they are.
 
-use kiddo::SquaredEuclidean;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use super::{build_tree, FusionError, PointCloud};
+use super::{build_tree, nearest_within, FusionError, PointCloud};
 
 /// How duplicates in the overlap become one point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -93,13 +92,7 @@ pub fn merge_clouds(
     let owner: Vec<Option<usize>> = b
         .points
         .par_iter()
-        .map(|p| {
-            let nn = tree
-                .query(&[p.x, p.y, p.z])
-                .nearest_one::<SquaredEuclidean<f64>>()
-                .execute();
-            (nn.distance <= radius2).then_some(nn.item as usize)
-        })
+        .map(|p| nearest_within(&tree, p, radius2).map(|(j, _)| j))
         .collect();
 
     // Start from A as it is; fold each duplicate into its owner.
