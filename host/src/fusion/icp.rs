@@ -12,7 +12,7 @@
 use nalgebra::{Isometry3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 
-use super::{build_tree, nearest_within, FusionError, PointCloud, Tree};
+use super::{build_tree, morton_order, nearest_within, FusionError, PointCloud, Tree};
 
 /// Robust weighting of the point-to-plane residuals. Thresholds are in units
 /// of the robust scale `sigma = 1.4826 * median(|r|)` (floored at
@@ -82,6 +82,9 @@ pub struct IcpParams {
     pub max_correction_rotation_deg: f64,
     /// Largest translation away from the initial guess, metres.
     pub max_correction_translation_m: f64,
+    /// Most source points used while the gate is wider than the final
+    /// gate (coarse alignment); the final iterations use every point.
+    pub coarse_max_points: usize,
 }
 
 impl Default for IcpParams {
@@ -97,6 +100,7 @@ impl Default for IcpParams {
             min_correspondences: 100,
             max_correction_rotation_deg: 15.0,
             max_correction_translation_m: 0.05,
+            coarse_max_points: 50_000,
         }
     }
 }
@@ -139,6 +143,13 @@ impl IcpParams {
                 name: "max_iterations",
                 value: 0.0,
                 expected: ">= 1",
+            });
+        }
+        if self.coarse_max_points < self.min_correspondences {
+            return Err(FusionError::BadParameter {
+                name: "coarse_max_points",
+                value: self.coarse_max_points as f64,
+                expected: ">= min_correspondences",
             });
         }
         if self.min_correspondences < 6 {
@@ -247,12 +258,29 @@ impl<'a> IcpTarget<'a> {
                 min: params.min_correspondences,
             });
         }
+        // Statistics do not depend on the order; the cache does.
+        let source: Vec<Vector3<f64>> = morton_order(source).iter().map(|&i| source[i]).collect();
+        let source = source.as_slice();
         let mut transform = *initial;
         let mut gate = params.initial_gate_m;
         let mut converged = false;
         let mut iterations = 0;
         while iterations < params.max_iterations {
-            let pairs = self.pairs(source, &transform, gate, iterations, params)?;
+            // While the gate is still wide the estimate is coarse anyway:
+            // an even subsample (every m-th point in Z-order) is enough.
+            let stride = if gate > params.final_gate_m {
+                source.len().div_ceil(params.coarse_max_points)
+            } else {
+                1
+            };
+            let subsample: Vec<Vector3<f64>>;
+            let used = if stride > 1 {
+                subsample = source.iter().step_by(stride).copied().collect();
+                subsample.as_slice()
+            } else {
+                source
+            };
+            let pairs = self.pairs(used, &transform, gate, iterations, params)?;
             let sigma = robust_scale(&pairs, params.min_scale_m);
             let update =
                 solve_update(&pairs, sigma, params.robust).ok_or(FusionError::Degenerate {

@@ -15,6 +15,7 @@ pub mod normals;
 pub mod synthetic;
 
 use nalgebra::{Isometry3, Point3, Vector3};
+use rayon::prelude::*;
 
 pub use icp::{register, IcpParams, IcpResult, IcpTarget, RobustKernel};
 pub use merge::{merge_clouds, DuplicateRule, MergeParams, MergeReport};
@@ -294,6 +295,38 @@ pub(crate) fn nearest_within(
         .map(|nn| (nn.item as usize, nn.distance))
 }
 
+/// Indices of `points` in Z-order (Morton order) of their bounding box.
+/// Querying a kd-tree in this order keeps consecutive queries in the same
+/// leaves, so a million-point tree stays in cache; in the order the points
+/// come (a quasi-random sample, or rows of two cameras) it does not.
+pub(crate) fn morton_order(points: &[Vector3<f64>]) -> Vec<usize> {
+    let (lo, hi) = points.iter().fold(
+        (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN)),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    );
+    let extent = (hi - lo).max().max(f64::MIN_POSITIVE);
+    let cell = |v: f64, lo: f64| (((v - lo) / extent) * 2_097_151.0) as u64;
+    let key = |p: &Vector3<f64>| {
+        spread_bits(cell(p.x, lo.x))
+            | spread_bits(cell(p.y, lo.y)) << 1
+            | spread_bits(cell(p.z, lo.z)) << 2
+    };
+    let mut keyed: Vec<(u64, usize)> = points.par_iter().map(key).zip(0..points.len()).collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+/// The low 21 bits of `v` spread to every third bit.
+fn spread_bits(v: u64) -> u64 {
+    let mut x = v & 0x1f_ffff;
+    x = (x | x << 32) & 0x1f_0000_0000_ffff;
+    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x << 2) & 0x1249_2492_4924_9249;
+    x
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -368,6 +401,17 @@ mod tests {
             .map(|p| (p.z - synthetic::STANDOFF_M - synthetic::height_m(p.x, p.y)).abs())
             .fold(0.0, f64::max);
         assert!(worst < 150e-6, "worst height error {worst} m");
+    }
+
+    #[test]
+    fn morton_order_is_a_permutation_along_the_z_curve() {
+        assert_eq!(spread_bits(0b111), 0b1001001);
+        let pts: Vec<Vector3<f64>> = [(1, 1), (0, 0), (1, 0), (0, 1)]
+            .iter()
+            .map(|&(x, y)| Vector3::new(x as f64, y as f64, 0.0))
+            .collect();
+        // Z-curve over the unit square: (0,0) (1,0) (0,1) (1,1).
+        assert_eq!(morton_order(&pts), vec![1, 2, 3, 0]);
     }
 
     #[test]
