@@ -12,50 +12,9 @@
 use nalgebra::{Isometry3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 
+use super::robust::mad_scale;
+pub use super::robust::RobustKernel;
 use super::{build_tree, morton_order, nearest_within, FusionError, PointCloud, Tree};
-
-/// Robust weighting of the point-to-plane residuals. Thresholds are in units
-/// of the robust scale `sigma = 1.4826 * median(|r|)` (floored at
-/// [`IcpParams::min_scale_m`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum RobustKernel {
-    /// Plain least squares (every gated pair weight 1).
-    None,
-    /// Huber: weight 1 inside `k * sigma`, `k * sigma / |r|` outside.
-    Huber {
-        /// Threshold in scale units (1.345 is 95 % efficient on Gaussian noise).
-        k: f64,
-    },
-    /// Tukey biweight: `(1 - (r / (c sigma))^2)^2` inside, 0 outside.
-    Tukey {
-        /// Threshold in scale units (4.685 is 95 % efficient on Gaussian noise).
-        c: f64,
-    },
-}
-
-impl RobustKernel {
-    fn weight(self, r: f64, sigma: f64) -> f64 {
-        match self {
-            RobustKernel::None => 1.0,
-            RobustKernel::Huber { k } => {
-                let t = k * sigma;
-                if r.abs() <= t {
-                    1.0
-                } else {
-                    t / r.abs()
-                }
-            }
-            RobustKernel::Tukey { c } => {
-                let u = r / (c * sigma);
-                if u.abs() < 1.0 {
-                    (1.0 - u * u).powi(2)
-                } else {
-                    0.0
-                }
-            }
-        }
-    }
-}
 
 /// Settings of [`register`].
 #[derive(Debug, Clone, PartialEq)]
@@ -381,13 +340,9 @@ pub fn register(
     IcpTarget::new(target)?.register(&source.points, initial, params)
 }
 
-/// `1.4826 * median(|r|)`, the Gaussian-consistent MAD (residuals are
-/// centred on zero at the solution), floored at `min_scale_m`.
+/// Robust scale of the pairs' residuals.
 fn robust_scale(pairs: &[Pair], min_scale_m: f64) -> f64 {
-    let mut abs: Vec<f64> = pairs.iter().map(|p| p.r.abs()).collect();
-    let mid = abs.len() / 2;
-    let (_, median, _) = abs.select_nth_unstable_by(mid, f64::total_cmp);
-    (1.4826 * *median).max(min_scale_m)
+    mad_scale(pairs.iter().map(|p| p.r.abs()).collect(), min_scale_m)
 }
 
 /// Solves the weighted, linearised point-to-plane problem for a small
@@ -632,17 +587,5 @@ mod tests {
             register(&source, &target, &initial, &IcpParams::default()),
             Err(FusionError::Degenerate { iteration: 0 })
         );
-    }
-
-    #[test]
-    fn kernels_downweight_large_residuals() {
-        let huber = RobustKernel::Huber { k: 1.345 };
-        let tukey = RobustKernel::Tukey { c: 4.685 };
-        assert_eq!(huber.weight(1.0, 1.0), 1.0);
-        assert!((huber.weight(13.45, 1.0) - 0.1).abs() < 1e-12);
-        assert_eq!(tukey.weight(0.0, 1.0), 1.0);
-        assert_eq!(tukey.weight(5.0, 1.0), 0.0);
-        assert!(tukey.weight(2.0, 1.0) < tukey.weight(1.0, 1.0));
-        assert_eq!(RobustKernel::None.weight(1e9, 1.0), 1.0);
     }
 }

@@ -12,6 +12,7 @@
 pub mod icp;
 pub mod merge;
 pub mod normals;
+pub mod robust;
 pub mod synthetic;
 
 use nalgebra::{Isometry3, Point3, Vector3};
