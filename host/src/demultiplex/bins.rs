@@ -38,6 +38,14 @@ pub struct Alias {
 }
 
 /// Where each listed harmonic of each bin lands for `steps` samples.
+///
+/// ```
+/// use slscan::demultiplex::{harmonic_aliases, Alias};
+///
+/// // N = 5: the 3rd harmonic of bin 2 (frequency 6) folds onto bin 1.
+/// let table = harmonic_aliases(5, &[2], &[3]);
+/// assert_eq!(table, vec![Alias { source_bin: 2, harmonic: 3, lands_on_bin: 1 }]);
+/// ```
 pub fn harmonic_aliases(steps: usize, bins: &[usize], harmonics: &[usize]) -> Vec<Alias> {
     bins.iter()
         .flat_map(|&source_bin| {

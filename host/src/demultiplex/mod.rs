@@ -136,6 +136,21 @@ pub struct DemuxImages {
 
 /// Demultiplexer for one [`TemporalBins`]: the cosine and sine tables are
 /// computed once, each pixel is then two dot products per head.
+///
+/// ```
+/// use slscan::demultiplex::{phase_shift_rad, Demultiplexer, TemporalBins};
+///
+/// // Head A at phase 1.0 on bin 1, head B at phase -2.0 on bin 2, N = 8.
+/// let samples: Vec<f64> = (0..8)
+///     .map(|n| {
+///         0.5 + 0.2 * (1.0 + phase_shift_rad(1, n, 8)).cos()
+///             + 0.1 * (-2.0 + phase_shift_rad(2, n, 8)).cos()
+///     })
+///     .collect();
+/// let p = Demultiplexer::new(TemporalBins::design_default()).pixel(&samples);
+/// assert!((p.phase_a_rad - 1.0).abs() < 1e-12 && (p.phase_b_rad + 2.0).abs() < 1e-12);
+/// assert!((p.modulation_a - 0.2).abs() < 1e-12 && (p.background - 0.5).abs() < 1e-12);
+/// ```
 #[derive(Debug, Clone)]
 pub struct Demultiplexer {
     bins: TemporalBins,

@@ -6,6 +6,9 @@
 //! A, T * B --merge::merge_clouds--> one cloud, one point per surface sample in the overlap
 //! ```
 //!
+//! [`fuse_heads`] runs the three steps; [`synthetic`] builds a two-head
+//! scene with known truth for tests and `benches/icp.rs`.
+//!
 //! Points are `f64` here: ICP accumulates normal equations over a million
 //! points and we want micrometre agreement; the PLY writer narrows to `f32`.
 
