@@ -1,7 +1,8 @@
 //! Fusion timing on the synthetic two-head scene: normals, ICP and merge,
 //! with the recovered pose error, printed as a table.
 //!
-//! `cargo bench -p slscan --bench icp` (sizes: `ICP_BENCH_POINTS=100000,1000000`).
+//! `cargo bench -p slscan --bench icp` (sizes: `ICP_BENCH_POINTS=100000,1000000`,
+//! depth noise: `ICP_BENCH_NOISE_UM=20`, neighbours per normal: `ICP_BENCH_K=10`).
 //! A table rather than criterion: one 1M-point registration takes seconds,
 //! and criterion's ten-sample minimum would hold two shared cores for minutes.
 
@@ -25,6 +26,17 @@ fn main() {
                 .expect("ICP_BENCH_POINTS: comma-separated counts")
         })
         .collect();
+    let noise_m = std::env::var("ICP_BENCH_NOISE_UM")
+        .map(|s| s.parse::<f64>().expect("ICP_BENCH_NOISE_UM: micrometres"))
+        .unwrap_or(20.0)
+        * 1e-6;
+    let k: usize = std::env::var("ICP_BENCH_K")
+        .map(|s| s.parse().expect("ICP_BENCH_K: neighbours"))
+        .unwrap_or(10);
+    println!(
+        "depth noise {:.1} um, normals from {k} neighbours, start error 2 deg / 5 mm",
+        noise_m * 1e6
+    );
     println!(
         "{:>10} {:>9} {:>9} {:>9} {:>9} {:>5} {:>11} {:>9} {:>8} {:>8}",
         "pts/head",
@@ -40,9 +52,9 @@ fn main() {
     );
     for points in sizes {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        let mut scene = two_head_scene(points, 20e-6, || StandardNormal.sample(&mut rng));
+        let mut scene = two_head_scene(points, noise_m, || StandardNormal.sample(&mut rng));
         let (normals, t_normals) =
-            timed(|| estimate_normals(&scene.a.points, 10, &Vector3::zeros()).unwrap());
+            timed(|| estimate_normals(&scene.a.points, k, &Vector3::zeros()).unwrap());
         scene.a.normals = Some(normals);
         let initial = perturbed(
             &scene.b_to_a_m,
@@ -66,7 +78,7 @@ fn main() {
             // About the sampling pitch of head A's 75 x 100 mm.
             radius_m: (0.075 * 0.1 / points as f64).sqrt(),
             rule: DuplicateRule::WeightedMean,
-            default_sigma_m: 20e-6,
+            default_sigma_m: noise_m.max(1e-6) as f32,
         };
         let (_, t_merge) = timed(|| merge_clouds(&scene.a, &b, &merge).unwrap());
         println!(

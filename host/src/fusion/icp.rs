@@ -9,54 +9,12 @@
 //! each iteration down to its final value, so far pairs help at the start
 //! and the fine result sees only the true overlap.
 
-use kiddo::SquaredEuclidean;
 use nalgebra::{Isometry3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 
-use super::{build_tree, FusionError, PointCloud, Tree};
-
-/// Robust weighting of the point-to-plane residuals. Thresholds are in units
-/// of the robust scale `sigma = 1.4826 * median(|r|)` (floored at
-/// [`IcpParams::min_scale_m`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum RobustKernel {
-    /// Plain least squares (every gated pair weight 1).
-    None,
-    /// Huber: weight 1 inside `k * sigma`, `k * sigma / |r|` outside.
-    Huber {
-        /// Threshold in scale units (1.345 is 95 % efficient on Gaussian noise).
-        k: f64,
-    },
-    /// Tukey biweight: `(1 - (r / (c sigma))^2)^2` inside, 0 outside.
-    Tukey {
-        /// Threshold in scale units (4.685 is 95 % efficient on Gaussian noise).
-        c: f64,
-    },
-}
-
-impl RobustKernel {
-    fn weight(self, r: f64, sigma: f64) -> f64 {
-        match self {
-            RobustKernel::None => 1.0,
-            RobustKernel::Huber { k } => {
-                let t = k * sigma;
-                if r.abs() <= t {
-                    1.0
-                } else {
-                    t / r.abs()
-                }
-            }
-            RobustKernel::Tukey { c } => {
-                let u = r / (c * sigma);
-                if u.abs() < 1.0 {
-                    (1.0 - u * u).powi(2)
-                } else {
-                    0.0
-                }
-            }
-        }
-    }
-}
+use super::robust::mad_scale;
+pub use super::robust::RobustKernel;
+use super::{build_tree, morton_order, nearest_within, FusionError, PointCloud, Tree};
 
 /// Settings of [`register`].
 #[derive(Debug, Clone, PartialEq)]
@@ -83,6 +41,9 @@ pub struct IcpParams {
     pub max_correction_rotation_deg: f64,
     /// Largest translation away from the initial guess, metres.
     pub max_correction_translation_m: f64,
+    /// Most source points used while the gate is wider than the final
+    /// gate (coarse alignment); the final iterations use every point.
+    pub coarse_max_points: usize,
 }
 
 impl Default for IcpParams {
@@ -98,6 +59,7 @@ impl Default for IcpParams {
             min_correspondences: 100,
             max_correction_rotation_deg: 15.0,
             max_correction_translation_m: 0.05,
+            coarse_max_points: 50_000,
         }
     }
 }
@@ -140,6 +102,13 @@ impl IcpParams {
                 name: "max_iterations",
                 value: 0.0,
                 expected: ">= 1",
+            });
+        }
+        if self.coarse_max_points < self.min_correspondences {
+            return Err(FusionError::BadParameter {
+                name: "coarse_max_points",
+                value: self.coarse_max_points as f64,
+                expected: ">= min_correspondences",
             });
         }
         if self.min_correspondences < 6 {
@@ -248,12 +217,29 @@ impl<'a> IcpTarget<'a> {
                 min: params.min_correspondences,
             });
         }
+        // Statistics do not depend on the order; the cache does.
+        let source: Vec<Vector3<f64>> = morton_order(source).iter().map(|&i| source[i]).collect();
+        let source = source.as_slice();
         let mut transform = *initial;
         let mut gate = params.initial_gate_m;
         let mut converged = false;
         let mut iterations = 0;
         while iterations < params.max_iterations {
-            let pairs = self.pairs(source, &transform, gate, iterations, params)?;
+            // While the gate is still wide the estimate is coarse anyway:
+            // an even subsample (every m-th point in Z-order) is enough.
+            let stride = if gate > params.final_gate_m {
+                source.len().div_ceil(params.coarse_max_points)
+            } else {
+                1
+            };
+            let subsample: Vec<Vector3<f64>>;
+            let used = if stride > 1 {
+                subsample = source.iter().step_by(stride).copied().collect();
+                subsample.as_slice()
+            } else {
+                source
+            };
+            let pairs = self.pairs(used, &transform, gate, iterations, params)?;
             let sigma = robust_scale(&pairs, params.min_scale_m);
             let update =
                 solve_update(&pairs, sigma, params.robust).ok_or(FusionError::Degenerate {
@@ -321,15 +307,7 @@ impl<'a> IcpTarget<'a> {
             .par_iter()
             .filter_map(|p| {
                 let q = transform.transform_point(&Point3::from(*p)).coords;
-                let nn = self
-                    .tree
-                    .query(&[q.x, q.y, q.z])
-                    .nearest_one::<SquaredEuclidean<f64>>()
-                    .execute();
-                if nn.distance > gate2 {
-                    return None;
-                }
-                let j = nn.item as usize;
+                let (j, _) = nearest_within(&self.tree, &q, gate2)?;
                 let n = self.normals[j];
                 Some(Pair {
                     q,
@@ -362,13 +340,9 @@ pub fn register(
     IcpTarget::new(target)?.register(&source.points, initial, params)
 }
 
-/// `1.4826 * median(|r|)`, the Gaussian-consistent MAD (residuals are
-/// centred on zero at the solution), floored at `min_scale_m`.
+/// Robust scale of the pairs' residuals.
 fn robust_scale(pairs: &[Pair], min_scale_m: f64) -> f64 {
-    let mut abs: Vec<f64> = pairs.iter().map(|p| p.r.abs()).collect();
-    let mid = abs.len() / 2;
-    let (_, median, _) = abs.select_nth_unstable_by(mid, f64::total_cmp);
-    (1.4826 * *median).max(min_scale_m)
+    mad_scale(pairs.iter().map(|p| p.r.abs()).collect(), min_scale_m)
 }
 
 /// Solves the weighted, linearised point-to-plane problem for a small
@@ -578,6 +552,15 @@ mod tests {
             register(&tiny, &scene.a, &initial, &params()),
             Err(FusionError::TooFewPoints { points: 10, .. })
         ));
+        // A 5 mm start error cannot be corrected inside a 1 mm leash.
+        let leash = IcpParams {
+            max_correction_translation_m: 1e-3,
+            ..params()
+        };
+        assert!(matches!(
+            register(&scene.b, &scene.a, &initial, &leash),
+            Err(FusionError::Diverged { iteration: 0, .. })
+        ));
         let bad = IcpParams {
             final_gate_m: 1.0,
             ..params()
@@ -604,17 +587,5 @@ mod tests {
             register(&source, &target, &initial, &IcpParams::default()),
             Err(FusionError::Degenerate { iteration: 0 })
         );
-    }
-
-    #[test]
-    fn kernels_downweight_large_residuals() {
-        let huber = RobustKernel::Huber { k: 1.345 };
-        let tukey = RobustKernel::Tukey { c: 4.685 };
-        assert_eq!(huber.weight(1.0, 1.0), 1.0);
-        assert!((huber.weight(13.45, 1.0) - 0.1).abs() < 1e-12);
-        assert_eq!(tukey.weight(0.0, 1.0), 1.0);
-        assert_eq!(tukey.weight(5.0, 1.0), 0.0);
-        assert!(tukey.weight(2.0, 1.0) < tukey.weight(1.0, 1.0));
-        assert_eq!(RobustKernel::None.weight(1e9, 1.0), 1.0);
     }
 }

@@ -7,11 +7,10 @@
 //! point per surface sample there; B points with no A point near them are
 //! kept as they are.
 
-use kiddo::SquaredEuclidean;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use super::{build_tree, FusionError, PointCloud};
+use super::{build_tree, morton_order, nearest_within, FusionError, PointCloud};
 
 /// How duplicates in the overlap become one point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -90,17 +89,15 @@ pub fn merge_clouds(
     // Nearest A point of every B point, if within the radius.
     let tree = build_tree(&a.points)?;
     let radius2 = params.radius_m * params.radius_m;
-    let owner: Vec<Option<usize>> = b
-        .points
+    let order = morton_order(&b.points);
+    let found: Vec<Option<usize>> = order
         .par_iter()
-        .map(|p| {
-            let nn = tree
-                .query(&[p.x, p.y, p.z])
-                .nearest_one::<SquaredEuclidean<f64>>()
-                .execute();
-            (nn.distance <= radius2).then_some(nn.item as usize)
-        })
+        .map(|&i| nearest_within(&tree, &b.points[i], radius2).map(|(j, _)| j))
         .collect();
+    let mut owner = vec![None; b.len()];
+    for (&i, f) in order.iter().zip(found) {
+        owner[i] = f;
+    }
 
     // Start from A as it is; fold each duplicate into its owner.
     let mut fused = Fused::from_cloud(a, &sigma_of, params.rule);

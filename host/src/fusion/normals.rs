@@ -6,7 +6,7 @@ use kiddo::SquaredEuclidean;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
 
-use super::{build_tree, check_finite, FusionError, Tree};
+use super::{build_tree, check_finite, morton_order, FusionError, Tree};
 
 /// Fewest neighbours that define a plane with some noise averaging.
 pub const MIN_NEIGHBOURS: usize = 3;
@@ -49,9 +49,11 @@ pub(crate) fn normals_with_tree(
     sensor_origin: &Vector3<f64>,
 ) -> Vec<Vector3<f64>> {
     let k = NonZeroUsize::new(k).expect("k >= 3 checked by the caller");
-    points
+    let order = morton_order(points);
+    let found: Vec<Vector3<f64>> = order
         .par_iter()
-        .map(|p| {
+        .map(|&i| {
+            let p = &points[i];
             let neighbours = tree
                 .query(&[p.x, p.y, p.z])
                 .nearest_n::<SquaredEuclidean<f64>>(k)
@@ -64,7 +66,12 @@ pub(crate) fn normals_with_tree(
                 normal
             }
         })
-        .collect()
+        .collect();
+    let mut normals = vec![Vector3::zeros(); points.len()];
+    for (&i, n) in order.iter().zip(found) {
+        normals[i] = n;
+    }
+    normals
 }
 
 /// Smallest-variance direction of the points at `idx`.

@@ -50,7 +50,7 @@ pub fn true_b_to_a() -> Isometry3<f64> {
 /// Builds the scene with `points_per_head` points per head and depth noise
 /// `noise_sigma_m` along each camera ray; `standard_normal` draws N(0, 1)
 /// samples (the caller owns the random generator). Every point's quality is
-/// `noise_sigma_m`.
+/// `noise_sigma_m` (none when it is 0).
 pub fn two_head_scene(
     points_per_head: usize,
     noise_sigma_m: f64,
@@ -76,7 +76,8 @@ pub fn two_head_scene(
         .iter()
         .map(|p| to_b.transform_point(&Point3::from(*p)).coords)
         .collect();
-    let quality = Some(vec![noise_sigma_m as f32; points_per_head]);
+    // A noise-free scene has no meaningful sigma (and 0 is not a valid one).
+    let quality = (noise_sigma_m > 0.0).then(|| vec![noise_sigma_m as f32; points_per_head]);
     TwoHeadScene {
         a: PointCloud {
             points: a_points,

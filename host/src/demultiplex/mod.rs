@@ -25,23 +25,14 @@
 //! even harmonics; linearise the projector or pick bins with
 //! [`smallest_safe_bins`].
 
-use std::f64::consts::TAU;
+mod bins;
+
+pub use bins::{
+    folded_bin, harmonic_aliases, phase_shift_rad, smallest_safe_bins, Alias, TemporalBins,
+    MIN_STEPS, ODD_HARMONICS,
+};
 
 use rayon::prelude::*;
-
-/// Fewest steps of a multiplexed sequence (two bins plus background need
-/// 5 real samples).
-pub const MIN_STEPS: usize = 5;
-
-/// Harmonics of defocused binary fringes (odd), the DESIGN.md default.
-pub const ODD_HARMONICS: [usize; 3] = [3, 5, 7];
-
-/// Phase shift of a head running at temporal bin `temporal_bin` at step
-/// `step` of a `steps`-step sequence, radians: `2 pi k n / N`. The pattern
-/// generator displays `cos(phase + shift)`.
-pub fn phase_shift_rad(temporal_bin: usize, step: usize, steps: usize) -> f64 {
-    TAU * ((temporal_bin * step) % steps) as f64 / steps as f64
-}
 
 /// What can be wrong with a multiplexed sequence or its frames.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -108,122 +99,6 @@ pub enum DemuxError {
     },
 }
 
-/// Bin 0..=N/2 that temporal frequency `frequency` shows up in for real
-/// samples (bins j and N - j are conjugates).
-pub fn folded_bin(frequency: usize, steps: usize) -> usize {
-    let f = frequency % steps;
-    f.min(steps - f)
-}
-
-/// One row of the folding table.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Alias {
-    /// Bin of the head whose projector makes the harmonic.
-    pub source_bin: usize,
-    /// Harmonic order.
-    pub harmonic: usize,
-    /// Bin the harmonic lands on after folding.
-    pub lands_on_bin: usize,
-}
-
-/// Where each listed harmonic of each bin lands for `steps` samples.
-pub fn harmonic_aliases(steps: usize, bins: &[usize], harmonics: &[usize]) -> Vec<Alias> {
-    bins.iter()
-        .flat_map(|&source_bin| {
-            harmonics.iter().map(move |&harmonic| Alias {
-                source_bin,
-                harmonic,
-                lands_on_bin: folded_bin(harmonic * source_bin, steps),
-            })
-        })
-        .collect()
-}
-
-/// A validated choice of steps and temporal bins for two heads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct TemporalBins {
-    steps: usize,
-    bin_a: usize,
-    bin_b: usize,
-}
-
-impl TemporalBins {
-    /// Checks `steps >= 5`, `0 < k < N/2` for both bins, distinct bins, and
-    /// that none of `harmonics` of one bin folds onto the other.
-    pub fn new(
-        steps: usize,
-        bin_a: usize,
-        bin_b: usize,
-        harmonics: &[usize],
-    ) -> Result<Self, DemuxError> {
-        if steps < MIN_STEPS {
-            return Err(DemuxError::TooFewSteps {
-                steps,
-                min: MIN_STEPS,
-            });
-        }
-        for bin in [bin_a, bin_b] {
-            if bin == 0 || 2 * bin >= steps {
-                return Err(DemuxError::BinOutOfRange { bin, steps });
-            }
-        }
-        if bin_a == bin_b {
-            return Err(DemuxError::SameBin { bin: bin_a });
-        }
-        for alias in harmonic_aliases(steps, &[bin_a, bin_b], harmonics) {
-            let other = if alias.source_bin == bin_a {
-                bin_b
-            } else {
-                bin_a
-            };
-            if alias.lands_on_bin == other {
-                return Err(DemuxError::HarmonicAlias {
-                    steps,
-                    source_bin: alias.source_bin,
-                    harmonic: alias.harmonic,
-                    lands_on_bin: other,
-                });
-            }
-        }
-        Ok(Self {
-            steps,
-            bin_a,
-            bin_b,
-        })
-    }
-
-    /// DESIGN.md's choice: N = 8, head A on bin 1, head B on bin 2, safe
-    /// against the 3rd, 5th and 7th harmonics.
-    pub fn design_default() -> Self {
-        Self::new(8, 1, 2, &ODD_HARMONICS).expect("N = 8 with bins 1, 2 is valid")
-    }
-
-    /// Steps N.
-    pub fn steps(&self) -> usize {
-        self.steps
-    }
-
-    /// Head A's temporal bin.
-    pub fn bin_a(&self) -> usize {
-        self.bin_a
-    }
-
-    /// Head B's temporal bin.
-    pub fn bin_b(&self) -> usize {
-        self.bin_b
-    }
-}
-
-/// The valid choice with the fewest steps (then lowest bins) up to
-/// `max_steps` that keeps every listed harmonic off the other head's bin.
-pub fn smallest_safe_bins(harmonics: &[usize], max_steps: usize) -> Option<TemporalBins> {
-    (MIN_STEPS..=max_steps).find_map(|steps| {
-        (1..steps.div_ceil(2)).find_map(|a| {
-            (a + 1..steps.div_ceil(2)).find_map(|b| TemporalBins::new(steps, a, b, harmonics).ok())
-        })
-    })
-}
-
 /// One pixel, demultiplexed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PixelDemux {
@@ -261,6 +136,21 @@ pub struct DemuxImages {
 
 /// Demultiplexer for one [`TemporalBins`]: the cosine and sine tables are
 /// computed once, each pixel is then two dot products per head.
+///
+/// ```
+/// use slscan::demultiplex::{phase_shift_rad, Demultiplexer, TemporalBins};
+///
+/// // Head A at phase 1.0 on bin 1, head B at phase -2.0 on bin 2, N = 8.
+/// let samples: Vec<f64> = (0..8)
+///     .map(|n| {
+///         0.5 + 0.2 * (1.0 + phase_shift_rad(1, n, 8)).cos()
+///             + 0.1 * (-2.0 + phase_shift_rad(2, n, 8)).cos()
+///     })
+///     .collect();
+/// let p = Demultiplexer::new(TemporalBins::design_default()).pixel(&samples);
+/// assert!((p.phase_a_rad - 1.0).abs() < 1e-12 && (p.phase_b_rad + 2.0).abs() < 1e-12);
+/// assert!((p.modulation_a - 0.2).abs() < 1e-12 && (p.background - 0.5).abs() < 1e-12);
+/// ```
 #[derive(Debug, Clone)]
 pub struct Demultiplexer {
     bins: TemporalBins,
@@ -274,16 +164,16 @@ impl Demultiplexer {
     /// Tables for `bins`.
     pub fn new(bins: TemporalBins) -> Self {
         let table = |k: usize, f: fn(f64) -> f64| {
-            (0..bins.steps)
-                .map(|n| f(phase_shift_rad(k, n, bins.steps)))
+            (0..bins.steps())
+                .map(|n| f(phase_shift_rad(k, n, bins.steps())))
                 .collect()
         };
         Self {
             bins,
-            cos_a: table(bins.bin_a, f64::cos),
-            sin_a: table(bins.bin_a, f64::sin),
-            cos_b: table(bins.bin_b, f64::cos),
-            sin_b: table(bins.bin_b, f64::sin),
+            cos_a: table(bins.bin_a(), f64::cos),
+            sin_a: table(bins.bin_a(), f64::sin),
+            cos_b: table(bins.bin_b(), f64::cos),
+            sin_b: table(bins.bin_b(), f64::sin),
         }
     }
 
@@ -294,8 +184,8 @@ impl Demultiplexer {
 
     /// Demultiplexes one pixel's N samples (`samples.len()` must be N).
     pub fn pixel(&self, samples: &[f64]) -> PixelDemux {
-        debug_assert_eq!(samples.len(), self.bins.steps);
-        let n = self.bins.steps as f64;
+        debug_assert_eq!(samples.len(), self.bins.steps());
+        let n = self.bins.steps() as f64;
         let dot = |t: &[f64]| samples.iter().zip(t).map(|(i, c)| i * c).sum::<f64>();
         let (ca, sa) = (dot(&self.cos_a), dot(&self.sin_a));
         let (cb, sb) = (dot(&self.cos_b), dot(&self.sin_b));
@@ -310,7 +200,7 @@ impl Demultiplexer {
 
     /// Demultiplexes N row-major frames of equal size, pixel by pixel.
     pub fn frames(&self, frames: &[&[f32]]) -> Result<DemuxImages, DemuxError> {
-        let steps = self.bins.steps;
+        let steps = self.bins.steps();
         if frames.len() != steps {
             return Err(DemuxError::FrameCount {
                 expected: steps,
@@ -364,7 +254,7 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
-    use std::f64::consts::PI;
+    use std::f64::consts::{PI, TAU};
 
     fn wrap(d: f64) -> f64 {
         (d + PI).rem_euclid(TAU) - PI
@@ -418,12 +308,6 @@ mod tests {
     /// An uncorrected projector gamma of 2.2: every harmonic.
     fn gamma_2_2(t: f64) -> f64 {
         0.6 * (0.5 + 0.5 * t.cos()).powf(2.2)
-    }
-
-    #[test]
-    fn shift_is_2_pi_k_n_over_n() {
-        assert!((phase_shift_rad(2, 3, 8) - TAU * 6.0 / 8.0).abs() < 1e-15);
-        assert_eq!(phase_shift_rad(2, 4, 8), 0.0);
     }
 
     #[test]
@@ -505,57 +389,6 @@ mod tests {
     }
 
     #[test]
-    fn folding_table_and_validation() {
-        // N = 5: 3rd harmonic of bin 1 is 3 = -2, of bin 2 is 6 = 1.
-        let table = harmonic_aliases(5, &[1, 2], &[3]);
-        assert_eq!(table[0].lands_on_bin, 2);
-        assert_eq!(table[1].lands_on_bin, 1);
-        assert_eq!(
-            TemporalBins::new(5, 1, 2, &ODD_HARMONICS),
-            Err(DemuxError::HarmonicAlias {
-                steps: 5,
-                source_bin: 1,
-                harmonic: 3,
-                lands_on_bin: 2
-            })
-        );
-        // N = 8: odd harmonics of 1 land on 3, 3, 1; of 2 on 2, 2, 2.
-        let lands: Vec<usize> = harmonic_aliases(8, &[1, 2], &ODD_HARMONICS)
-            .iter()
-            .map(|a| a.lands_on_bin)
-            .collect();
-        assert_eq!(lands, vec![3, 3, 1, 2, 2, 2]);
-        assert!(TemporalBins::new(8, 1, 2, &ODD_HARMONICS).is_ok());
-        // ... but the 2nd harmonic of bin 1 is bin 2, whatever N.
-        assert!(matches!(
-            TemporalBins::new(8, 1, 2, &[2]),
-            Err(DemuxError::HarmonicAlias { harmonic: 2, .. })
-        ));
-        assert_eq!(
-            TemporalBins::new(4, 1, 2, &[]),
-            Err(DemuxError::TooFewSteps { steps: 4, min: 5 })
-        );
-        assert_eq!(
-            TemporalBins::new(8, 1, 4, &[]),
-            Err(DemuxError::BinOutOfRange { bin: 4, steps: 8 })
-        );
-        assert_eq!(
-            TemporalBins::new(8, 0, 2, &[]),
-            Err(DemuxError::BinOutOfRange { bin: 0, steps: 8 })
-        );
-        assert_eq!(
-            TemporalBins::new(8, 2, 2, &[]),
-            Err(DemuxError::SameBin { bin: 2 })
-        );
-        let safe = smallest_safe_bins(&[2, 3], 32).unwrap();
-        assert_eq!((safe.steps(), safe.bin_a(), safe.bin_b()), (10, 1, 4));
-        // N = 6 already keeps odd harmonics apart: 3 x bin 1 lands on the
-        // Nyquist bin 3, 5 x bin 1 on bin 1 itself.
-        let odd = smallest_safe_bins(&ODD_HARMONICS, 32).unwrap();
-        assert_eq!((odd.steps(), odd.bin_a(), odd.bin_b()), (6, 1, 2));
-    }
-
-    #[test]
     fn odd_harmonics_do_not_cross_with_n8_but_do_with_n5() {
         let good = TemporalBins::design_default();
         let bad = TemporalBins::new(5, 1, 2, &[]).unwrap();
@@ -582,6 +415,41 @@ mod tests {
         assert!(b_design > 1e-2, "{b_design}");
         // Only the 4th and higher harmonics leak now: much smaller.
         assert!(b_safe < b_design / 5.0, "{b_safe} vs {b_design}");
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+        /// Any valid (N, k_a, k_b) separates ideal sinusoids exactly, and
+        /// the table-driven kernel equals a direct DFT of the two bins.
+        #[test]
+        fn any_valid_bins_separate(
+            steps in 5usize..17,
+            ka in 1usize..8,
+            kb in 1usize..8,
+            pa in -3.1f64..3.1,
+            pb in -3.1f64..3.1,
+            ba in 0.01f64..1.0,
+            bb in 0.01f64..1.0,
+        ) {
+            let Ok(bins) = TemporalBins::new(steps, ka, kb, &[]) else {
+                return Ok(());
+            };
+            let s = samples(bins, (pa, pb), sine(ba), sine(bb));
+            let p = Demultiplexer::new(bins).pixel(&s);
+            proptest::prop_assert!(wrap(p.phase_a_rad - pa).abs() < 1e-9);
+            proptest::prop_assert!(wrap(p.phase_b_rad - pb).abs() < 1e-9);
+            proptest::prop_assert!((p.modulation_a - ba).abs() < 1e-9);
+            proptest::prop_assert!((p.modulation_b - bb).abs() < 1e-9);
+            for (k, phase, modulation) in [(ka, p.phase_a_rad, p.modulation_a), (kb, p.phase_b_rad, p.modulation_b)] {
+                let (re, im) = s.iter().enumerate().fold((0.0, 0.0), |(re, im), (n, v)| {
+                    let d = TAU * (k * n) as f64 / steps as f64;
+                    (re + v * d.cos(), im - v * d.sin())
+                });
+                // sum I e^{-i d} = re + i im, and phi = atan2(-sum I sin d, sum I cos d) = atan2(im, re).
+                proptest::prop_assert!(wrap(phase - im.atan2(re)).abs() < 1e-12);
+                proptest::prop_assert!((modulation - 2.0 / steps as f64 * re.hypot(im)).abs() < 1e-12);
+            }
+        }
     }
 
     #[test]
