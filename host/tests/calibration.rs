@@ -333,8 +333,9 @@ fn views_without_a_board_are_skipped_and_too_few_is_an_error() {
     assert!(matches!(err, HeadError::MissingPhase { .. }), "{err}");
 }
 
-/// `slscan calibrate --sim` writes a rig file that reads back, and the
-/// images and phase maps it saves calibrate again through `--images`.
+/// `slscan calibrate --sim --two-heads` writes a two-head rig file that
+/// reads back, and the images and phase maps it saves calibrate again
+/// through `--images`.
 #[test]
 fn cli_sim_then_images_round_trip() {
     let dir = std::env::temp_dir().join(format!("slscan-cal-cli-{}", std::process::id()));
@@ -347,6 +348,7 @@ fn cli_sim_then_images_round_trip() {
         .args([
             "calibrate",
             "--sim",
+            "--two-heads",
             "--views",
             "4",
             "--bits",
@@ -362,7 +364,11 @@ fn cli_sim_then_images_round_trip() {
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("PLACEHOLDER"), "{stderr}");
     let sim_rig = slscan::calibration::read_rig(&rig).expect("valid rig file");
-    assert_eq!(sim_rig.heads[0].view_errors.len(), 4);
+    assert_eq!(sim_rig.heads.len(), 2);
+    assert_eq!(sim_rig.heads[1].view_errors.len(), 4);
+    let (_, truth) = SimHead::standard(4).second_head();
+    let h2h = sim_rig.head_to_head.expect("two heads have head_to_head");
+    assert!((h2h.translation_m - truth.translation_m).norm() < 2e-3);
 
     let rig2 = dir.join("rig2.json");
     let out = std::process::Command::new(exe)
@@ -374,7 +380,7 @@ fn cli_sim_then_images_round_trip() {
             "18",
             "--images",
         ])
-        .arg(&views)
+        .arg(views.join("A"))
         .arg("--out")
         .arg(&rig2)
         .output()
@@ -399,7 +405,7 @@ fn cli_sim_then_images_round_trip() {
     let bad = dir.join("bad.json");
     let out = std::process::Command::new(exe)
         .args(["calibrate", "--cols", "10", "--images"])
-        .arg(&views)
+        .arg(views.join("B"))
         .arg("--out")
         .arg(&bad)
         .output()
