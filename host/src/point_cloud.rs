@@ -31,43 +31,62 @@ impl PointCloud {
 /// central differences on the pixel grid, turned to face the camera at `viewpoint`.
 /// NaN where a neighbour is missing.
 pub fn grid_normals(points: &Raster<[f32; 3]>, viewpoint: [f32; 3]) -> Raster<[f32; 3]> {
+    use rayon::prelude::*;
     let (w, h) = points.size();
-    let nan = [f32::NAN; 3];
     let get = |x: usize, y: usize| points.data[y * w + x];
+    let mut out = Raster::filled(w, h, [f32::NAN; 3]);
+    out.data
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, n) in row.iter_mut().enumerate() {
+                *n = grid_normal(&get, w, h, x, y, viewpoint);
+            }
+        });
+    out
+}
+
+/// The normal at one pixel of an organised cloud given by `get(x, y)` (see
+/// [`grid_normals`]).
+#[inline]
+pub fn grid_normal(
+    get: &impl Fn(usize, usize) -> [f32; 3],
+    w: usize,
+    h: usize,
+    x: usize,
+    y: usize,
+    viewpoint: [f32; 3],
+) -> [f32; 3] {
+    let nan = [f32::NAN; 3];
     let ok = |p: &[f32; 3]| p[0].is_finite();
-    Raster::from_fn(w, h, |x, y| {
-        if x == 0 || y == 0 || x + 1 >= w || y + 1 >= h || !ok(&get(x, y)) {
-            return nan;
-        }
-        let (l, r, u, d) = (get(x - 1, y), get(x + 1, y), get(x, y - 1), get(x, y + 1));
-        if !(ok(&l) && ok(&r) && ok(&u) && ok(&d)) {
-            return nan;
-        }
-        let a = [r[0] - l[0], r[1] - l[1], r[2] - l[2]];
-        let b = [d[0] - u[0], d[1] - u[1], d[2] - u[2]];
-        let mut n = [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ];
-        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        if len == 0.0 {
-            return nan;
-        }
-        let p = get(x, y);
-        let to_view = [
-            viewpoint[0] - p[0],
-            viewpoint[1] - p[1],
-            viewpoint[2] - p[2],
-        ];
-        let sign = if n[0] * to_view[0] + n[1] * to_view[1] + n[2] * to_view[2] < 0.0 {
-            -1.0
-        } else {
-            1.0
-        };
-        n.iter_mut().for_each(|c| *c *= sign / len);
-        n
-    })
+    if x == 0 || y == 0 || x + 1 >= w || y + 1 >= h || !ok(&get(x, y)) {
+        return nan;
+    }
+    let (l, r, u, d) = (get(x - 1, y), get(x + 1, y), get(x, y - 1), get(x, y + 1));
+    if !(ok(&l) && ok(&r) && ok(&u) && ok(&d)) {
+        return nan;
+    }
+    let a = [r[0] - l[0], r[1] - l[1], r[2] - l[2]];
+    let b = [d[0] - u[0], d[1] - u[1], d[2] - u[2]];
+    let mut n = [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ];
+    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    if len == 0.0 {
+        return nan;
+    }
+    let p = get(x, y);
+    let to_view = [
+        viewpoint[0] - p[0],
+        viewpoint[1] - p[1],
+        viewpoint[2] - p[2],
+    ];
+    let facing = n[0] * to_view[0] + n[1] * to_view[1] + n[2] * to_view[2];
+    let scale = if facing < 0.0 { -1.0 / len } else { 1.0 / len };
+    n.iter_mut().for_each(|c| *c *= scale);
+    n
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use crate::calibration::{CameraModel, Head, ProjectorModel};
 use crate::phase::{PhaseError, PhaseShift};
-use crate::point_cloud::{grid_normals, PointCloud};
+use crate::point_cloud::{grid_normal, PointCloud};
 use crate::raster::Raster;
 use crate::triangulation::{ProjectorAxis, Triangulator};
 use crate::unwrap::heterodyne::{Heterodyne, MAX_PERIODS};
@@ -287,9 +287,9 @@ impl Reconstructor {
     #[inline]
     fn decode_direction(
         &self,
-        frames: &[&Raster<f32>],
+        rows: &[&[f32]],
         heterodyne: &Heterodyne,
-        i: usize,
+        x: usize,
     ) -> (Result<f32, PixelStatus>, f32, f32, f32) {
         let n = self.config.steps;
         let k = self.config.periods_px.len();
@@ -299,7 +299,7 @@ impl Reconstructor {
         for p in 0..k {
             let (phi, b, a) = self
                 .shift
-                .decode(frames[p * n..(p + 1) * n].iter().map(|f| f.data[i]));
+                .decode(rows[p * n..(p + 1) * n].iter().map(|r| r[x]));
             wrapped[p] = phi;
             min_b = min_b.min(b);
             if p == 0 {
@@ -376,13 +376,17 @@ impl Reconstructor {
             .par_chunks_mut(width)
             .enumerate()
             .for_each(|(y, row)| {
+                // This row of every frame, sliced once (no per-sample index arithmetic).
+                let span = y * width..(y + 1) * width;
+                let rows_u: Vec<&[f32]> = frames_u.iter().map(|f| &f.data[span.clone()]).collect();
+                let rows_v: Option<Vec<&[f32]>> =
+                    frames_v.map(|fv| fv.iter().map(|f| &f.data[span.clone()]).collect());
                 for (x, out) in row.iter_mut().enumerate() {
                     let i = y * width + x;
-                    let (pu, mut b, a0, b0) =
-                        self.decode_direction(frames_u, &self.heterodyne_u, i);
+                    let (pu, mut b, a0, b0) = self.decode_direction(&rows_u, &self.heterodyne_u, x);
                     out.background = a0;
-                    let pv = frames_v.map(|f| {
-                        let (pv, bv, _, _) = self.decode_direction(f, &self.heterodyne_v, i);
+                    let pv = rows_v.as_ref().map(|rv| {
+                        let (pv, bv, _, _) = self.decode_direction(rv, &self.heterodyne_v, x);
                         b = b.min(bv);
                         pv
                     });
@@ -488,63 +492,67 @@ impl Reconstructor {
         Ok((Reconstruction { pixels, cloud }, times))
     }
 
-    /// Compacts valid pixels into a cloud (row-major order).
+    /// Compacts valid pixels into a cloud (row-major order): rows are counted, then
+    /// filled in parallel into exactly sized arrays (normals straight from the grid).
     fn cloud(&self, pixels: &Raster<PixelResult>) -> PointCloud {
-        let normals = self.config.normals.then(|| {
-            let organised = Raster {
-                width: pixels.width,
-                height: pixels.height,
-                data: pixels.data.iter().map(|p| p.point_m).collect(),
-            };
-            let c = self.triangulator.camera().centre_m();
-            grid_normals(&organised, [c.x as f32, c.y as f32, c.z as f32])
-        });
-        let rows: Vec<PointCloud> = pixels
+        let (w, h) = pixels.size();
+        let valid = |p: &PixelResult| p.status == PixelStatus::Valid;
+        let counts: Vec<usize> = pixels
             .data
-            .par_chunks(pixels.width)
-            .enumerate()
-            .map(|(y, row)| {
-                let mut part = PointCloud {
-                    normals: normals.as_ref().map(|_| Vec::new()),
-                    colours: Some(Vec::new()),
-                    quality_m: Some(Vec::new()),
-                    ..PointCloud::default()
-                };
-                for (x, p) in row.iter().enumerate() {
-                    if p.status != PixelStatus::Valid {
-                        continue;
-                    }
-                    part.points_m.push(p.point_m);
-                    if let (Some(dst), Some(src)) = (part.normals.as_mut(), normals.as_ref()) {
-                        let n = src.data[y * pixels.width + x];
-                        dst.push(if n[0].is_finite() { n } else { [0.0; 3] });
-                    }
-                    let g = (p.background.clamp(0.0, 1.0) * 255.0).round() as u8;
-                    part.colours.as_mut().expect("set").push([g; 3]);
-                    part.quality_m.as_mut().expect("set").push(p.sigma_m);
-                }
-                part
-            })
+            .par_chunks(w.max(1))
+            .map(|row| row.iter().filter(|p| valid(p)).count())
             .collect();
-        let mut cloud = PointCloud {
-            normals: normals.as_ref().map(|_| Vec::new()),
-            colours: Some(Vec::new()),
-            quality_m: Some(Vec::new()),
-            ..PointCloud::default()
-        };
-        for part in rows {
-            cloud.points_m.extend(part.points_m);
-            if let (Some(d), Some(s)) = (cloud.normals.as_mut(), part.normals) {
-                d.extend(s);
-            }
-            if let (Some(d), Some(s)) = (cloud.colours.as_mut(), part.colours) {
-                d.extend(s);
-            }
-            if let (Some(d), Some(s)) = (cloud.quality_m.as_mut(), part.quality_m) {
-                d.extend(s);
-            }
+        let total: usize = counts.iter().sum();
+        let mut points = vec![[0.0f32; 3]; total];
+        let mut normals = vec![[0.0f32; 3]; if self.config.normals { total } else { 0 }];
+        let mut colours = vec![[0u8; 3]; total];
+        let mut quality = vec![0.0f32; total];
+        // Split the outputs into one slice per row.
+        let mut parts = Vec::with_capacity(h);
+        let (mut p, mut n, mut c, mut q) = (
+            points.as_mut_slice(),
+            normals.as_mut_slice(),
+            colours.as_mut_slice(),
+            quality.as_mut_slice(),
+        );
+        for (y, &count) in counts.iter().enumerate() {
+            let (p0, p1) = p.split_at_mut(count);
+            let (n0, n1) = n.split_at_mut(if self.config.normals { count } else { 0 });
+            let (c0, c1) = c.split_at_mut(count);
+            let (q0, q1) = q.split_at_mut(count);
+            parts.push((y, p0, n0, c0, q0));
+            (p, n, c, q) = (p1, n1, c1, q1);
         }
-        cloud
+        let centre = self.triangulator.camera().centre_m();
+        let view = [centre.x as f32, centre.y as f32, centre.z as f32];
+        let get = |x: usize, y: usize| pixels.data[y * w + x].point_m;
+        parts.into_par_iter().for_each(|(y, p, n, c, q)| {
+            let row = &pixels.data[y * w..(y + 1) * w];
+            let mut k = 0;
+            for (x, px) in row.iter().enumerate() {
+                if !valid(px) {
+                    continue;
+                }
+                p[k] = px.point_m;
+                if !n.is_empty() {
+                    let normal = grid_normal(&get, w, h, x, y, view);
+                    n[k] = if normal[0].is_finite() {
+                        normal
+                    } else {
+                        [0.0; 3]
+                    };
+                }
+                c[k] = [(px.background.clamp(0.0, 1.0) * 255.0).round() as u8; 3];
+                q[k] = px.sigma_m;
+                k += 1;
+            }
+        });
+        PointCloud {
+            points_m: points,
+            normals: self.config.normals.then_some(normals),
+            colours: Some(colours),
+            quality_m: Some(quality),
+        }
     }
 }
 

@@ -111,35 +111,50 @@ pub fn trace(
         projector_px: Raster::filled(w, h, None),
         shading: Raster::filled(w, h, 0.0),
     };
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let Some(ray) = camera.pixel_ray(x as f64, y as f64) else {
-                continue;
-            };
-            let Some((t, s)) = nearest_hit(surfaces, &ray.origin_m, &ray.direction) else {
-                continue;
-            };
-            let p = ray.origin_m + ray.direction * t;
-            truth.point_m.data[i] = Some(p);
-            truth.surface.data[i] = Some(s);
-            let to_proj = proj_centre - p;
-            let dist = to_proj.norm();
-            let l = to_proj / dist;
-            let cos = surfaces[s].normal_at(&p).dot(&l);
-            // Facing the camera side is assumed (closed surfaces, camera outside).
-            let shadowed =
-                nearest_hit(surfaces, &(p + l * 1e-7), &l).is_some_and(|(t2, _)| t2 < dist);
-            if cos <= 0.0 || shadowed {
-                continue;
-            }
-            if let Some(px) = projector.project(&p).filter(|px| projector.contains(px)) {
-                truth.projector_px.data[i] = Some((px.x, px.y));
-                truth.shading.data[i] = cos as f32;
-            }
-        }
+    use rayon::prelude::*;
+    let per_pixel: Vec<_> = (0..w * h)
+        .into_par_iter()
+        .map(|i| trace_pixel(surfaces, camera, projector, &proj_centre, i % w, i / w))
+        .collect();
+    for (i, (p, s, px, cos)) in per_pixel.into_iter().enumerate() {
+        truth.point_m.data[i] = p;
+        truth.surface.data[i] = s;
+        truth.projector_px.data[i] = px;
+        truth.shading.data[i] = cos;
     }
     truth
+}
+
+type PixelTruth = (Option<Point3<f64>>, Option<usize>, Option<(f64, f64)>, f32);
+
+fn trace_pixel(
+    surfaces: &[Surface],
+    camera: &CameraModel,
+    projector: &ProjectorModel,
+    proj_centre: &Point3<f64>,
+    x: usize,
+    y: usize,
+) -> PixelTruth {
+    let Some(ray) = camera.pixel_ray(x as f64, y as f64) else {
+        return (None, None, None, 0.0);
+    };
+    let Some((t, s)) = nearest_hit(surfaces, &ray.origin_m, &ray.direction) else {
+        return (None, None, None, 0.0);
+    };
+    let p = ray.origin_m + ray.direction * t;
+    let to_proj = proj_centre - p;
+    let dist = to_proj.norm();
+    let l = to_proj / dist;
+    let cos = surfaces[s].normal_at(&p).dot(&l);
+    // Closed surfaces seen from outside: a back face to the projector is unlit.
+    let shadowed = nearest_hit(surfaces, &(p + l * 1e-7), &l).is_some_and(|(t2, _)| t2 < dist);
+    if cos <= 0.0 || shadowed {
+        return (Some(p), Some(s), None, 0.0);
+    }
+    match projector.project(&p).filter(|px| projector.contains(px)) {
+        Some(px) => (Some(p), Some(s), Some((px.x, px.y)), cos as f32),
+        None => (Some(p), Some(s), None, 0.0),
+    }
 }
 
 fn nearest_hit(surfaces: &[Surface], o: &Point3<f64>, d: &Vector3<f64>) -> Option<(f64, usize)> {
@@ -151,23 +166,32 @@ fn nearest_hit(surfaces: &[Surface], o: &Point3<f64>, d: &Vector3<f64>) -> Optio
 }
 
 /// Renders one camera frame of a projected pattern given as a formula of `(u, v)` with
-/// values in [0, 1]. `seed` fixes the noise.
+/// values in [0, 1]. `seed` fixes the noise (one ChaCha stream per row, so rows render in
+/// parallel and the result does not depend on the thread count).
 pub fn render(
     truth: &GroundTruth,
-    pattern: impl Fn(f64, f64) -> f64,
+    pattern: impl Fn(f64, f64) -> f64 + Sync,
     lighting: &Lighting,
     seed: u64,
 ) -> Raster<f32> {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    use rayon::prelude::*;
     let noise = Normal::new(0.0f32, lighting.noise_sigma.max(0.0)).expect("finite sigma");
     let (w, h) = truth.shading.size();
     let mut out = Raster::filled(w, h, 0.0f32);
-    for i in 0..w * h {
-        let lit = truth.projector_px.data[i]
-            .map(|(u, v)| lighting.gain * truth.shading.data[i] * pattern(u, v) as f32)
-            .unwrap_or(0.0);
-        out.data[i] = lighting.ambient + lit + noise.sample(&mut rng);
-    }
+    out.data
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            rng.set_stream(y as u64);
+            for (x, v) in row.iter_mut().enumerate() {
+                let i = y * w + x;
+                let lit = truth.projector_px.data[i]
+                    .map(|(u, v)| lighting.gain * truth.shading.data[i] * pattern(u, v) as f32)
+                    .unwrap_or(0.0);
+                *v = lighting.ambient + lit + noise.sample(&mut rng);
+            }
+        });
     out
 }
 

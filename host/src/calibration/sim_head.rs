@@ -131,6 +131,42 @@ impl SimHead {
         }
     }
 
+    /// A second head that sees the same board poses from about 15 cm to the
+    /// side, turned 0.3 rad so that the boards stay centred, with a camera
+    /// and a projector of its own; returns it and the true head-0 camera ->
+    /// head-1 camera pose.
+    pub fn second_head(&self) -> (SimHead, Pose) {
+        let to_second = pose_from_rodrigues(
+            &Vector3::new(0.0, 0.3, 0.0),
+            &Vector3::new(-0.15, 0.0, 0.04),
+        );
+        let mut second = self.clone();
+        second.camera.intrinsics = Intrinsics {
+            fx: 640.0,
+            fy: 636.0,
+            cx: 318.0,
+            cy: 243.5,
+        };
+        second.camera.distortion = Distortion {
+            k1: -0.12,
+            k2: 0.04,
+            p1: -0.0006,
+            p2: 0.0004,
+            k3: 0.0,
+        };
+        second.projector.intrinsics.cx = 460.0;
+        second.projector.pose = pose_from_rodrigues(
+            &Vector3::new(0.0, -0.2, 0.0),
+            &Vector3::new(0.12, 0.0, 0.015),
+        );
+        second.board_poses = self
+            .board_poses
+            .iter()
+            .map(|p| to_second.compose(p))
+            .collect();
+        (second, to_second)
+    }
+
     /// The projector spec the calibration is told.
     pub fn projector_spec(&self) -> ProjectorSpec {
         ProjectorSpec {

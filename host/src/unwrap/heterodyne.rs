@@ -157,7 +157,7 @@ impl Heterodyne {
         chain[0] = level[0];
         for (l, slot) in chain.iter_mut().enumerate().take(k).skip(1) {
             for j in 0..k - l {
-                level[j] = crate::phase::wrap_pi(level[j] - level[j + 1]);
+                level[j] = wrap_difference(level[j] - level[j + 1]);
             }
             *slot = level[0];
         }
@@ -230,6 +230,20 @@ impl Heterodyne {
             },
             period_px: self.periods_px[0],
         })
+    }
+}
+
+/// Wraps the difference of two wrapped phases (in (-2 pi, 2 pi)) back into (-pi, pi]
+/// without a division: this runs for every pixel and level.
+#[inline]
+fn wrap_difference(d: f32) -> f32 {
+    use std::f32::consts::{PI, TAU};
+    if d > PI {
+        d - TAU
+    } else if d <= -PI {
+        d + TAU
+    } else {
+        d
     }
 }
 

@@ -254,7 +254,13 @@ fn refine_all(
                 spacing = spacing.min((q - p).norm());
             }
         }
-        let half = (0.4 * spacing).floor().clamp(2.0, 10.0) as usize;
+        // Near the image edge the window shrinks to fit (refinement needs
+        // the window plus one pixel of margin inside the image).
+        let to_edge =
+            p.x.min(p.y)
+                .min(raw.width as f64 - 1.0 - p.x)
+                .min(raw.height as f64 - 1.0 - p.y);
+        let half = (0.4 * spacing).min(to_edge - 3.0).floor().clamp(2.0, 10.0) as usize;
         let q =
             subpix::refine_corner(&gradient_plane, *p, half).ok_or(DetectError::RefineFailed {
                 index,

@@ -18,8 +18,8 @@ use slscan::calibration::board::{Checkerboard, CircleGrid, GrayImage, Target};
 use slscan::calibration::bundle::CameraCalibrationOptions;
 use slscan::calibration::detect::load_gray;
 use slscan::calibration::head::{
-    calibrate_camera_stage, calibrate_head, BoardCapture, CameraStage, HeadCalibration,
-    HeadOptions, ProjectorSpec,
+    calibrate_camera_stage, calibrate_head, calibrate_head_to_head, BoardCapture, CameraStage,
+    HeadCalibration, HeadOptions, ProjectorSpec,
 };
 use slscan::calibration::rodrigues::rotation_angle_between;
 use slscan::calibration::sim_head::SimHead;
@@ -72,7 +72,14 @@ pub struct Args {
     /// --sim: bit depth of the rendered images (8 or 16).
     #[arg(long, default_value_t = 8, value_parser = parse_bits)]
     bits: u8,
-    /// --sim: also write the rendered board images (PNG) here.
+    /// --sim: simulate and calibrate two heads and their head-to-head pose.
+    #[arg(long, requires = "sim")]
+    two_heads: bool,
+    /// --sim --two-heads: name of the second head.
+    #[arg(long, default_value = "B")]
+    head_b: String,
+    /// --sim: also write the rendered board images (PNG) and phase maps (.npy) here
+    /// (one folder per head with --two-heads).
     #[arg(long, value_name = "DIR")]
     save_images: Option<PathBuf>,
 }
@@ -149,22 +156,60 @@ fn run_sim(args: &Args, options: &HeadOptions) -> anyhow::Result<()> {
         },
         ..RenderSettings::default()
     };
-    let captures = sim.render(&settings, true);
-    if let Some(dir) = &args.save_images {
-        save_captures(dir, &captures, settings.bit_depth)?;
+    let target = Target::Checkerboard(sim.board);
+    let (second, true_head_to_head) = sim.second_head();
+    let mut heads = vec![(args.head.clone(), sim)];
+    if args.two_heads {
+        heads.push((args.head_b.clone(), second));
     }
-    let cal = calibrate_head(
-        &args.head,
-        &Target::Checkerboard(sim.board),
-        &captures,
-        &sim.projector_spec(),
-        options,
-    )
-    .context("calibrating the simulated head")?;
-    print_head(&cal);
-    print_truth_comparison(&sim, &cal);
-    write_rig(&args.out, &RigCalibration::single(cal.head))
-        .with_context(|| format!("writing {}", args.out.display()))?;
+    let mut calibrated = Vec::new();
+    let mut first_views = Vec::new();
+    for (name, sim) in &heads {
+        let captures = sim.render(&settings, true);
+        if let Some(dir) = &args.save_images {
+            let dir = if args.two_heads {
+                dir.join(name)
+            } else {
+                dir.clone()
+            };
+            save_captures(&dir, &captures, settings.bit_depth)?;
+        }
+        let cal = calibrate_head(name, &target, &captures, &sim.projector_spec(), options)
+            .with_context(|| format!("calibrating simulated head {name}"))?;
+        println!("== head {name}");
+        print_head(&cal);
+        print_truth_comparison(sim, &cal);
+        first_views.extend(captures.into_iter().next().map(|c| c.image));
+        calibrated.push(cal.head);
+    }
+    let head_to_head = match (args.two_heads, &calibrated[..], &first_views[..]) {
+        (true, [a, b], [img_a, img_b]) => {
+            // One board pose both heads saw: the first view.
+            let pair = calibrate_head_to_head(
+                &a.camera,
+                &b.camera,
+                &target,
+                &[(img_a.clone(), img_b.clone())],
+                options,
+            )
+            .context("head-to-head extrinsics")?;
+            let angle = rotation_angle_between(&pair.a_to_b.rotation, &true_head_to_head.rotation);
+            let dt = (pair.a_to_b.translation_m - true_head_to_head.translation_m).norm();
+            println!(
+                "head-to-head from one shared view: rms {:.4} px; recovered - true: rotation {:.4} deg, translation {:.3} mm",
+                pair.rms_px,
+                angle.to_degrees(),
+                dt * 1e3
+            );
+            Some(pair.a_to_b)
+        }
+        _ => None,
+    };
+    let rig = RigCalibration {
+        heads: calibrated,
+        head_to_head,
+    };
+    write_rig(&args.out, &rig).with_context(|| format!("writing {}", args.out.display()))?;
     println!("wrote {}", args.out.display());
     Ok(())
 }
