@@ -6,7 +6,11 @@ mod cmd;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "hil-sim", version, about = "Hardware-in-the-loop simulator for the slscan scanner")]
+#[command(
+    name = "hil-sim",
+    version,
+    about = "Hardware-in-the-loop simulator for the slscan scanner"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
