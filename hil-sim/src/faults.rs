@@ -1,13 +1,14 @@
 //! Fault injection, gathered in one [`FaultPlan`]: a byte-stream filter per
 //! direction of the serial link (dropped bytes, flipped bits, corrupted
 //! frames, a board that goes silent), a board that vanishes at a tick of its
-//! clock, and cameras that miss triggers.
+//! clock, cameras that miss triggers and projectors slower than their
+//! profile.
 //!
 //! Positions are counted in bytes or frames of one direction's stream, so a
 //! fault lands at the same place on every run, however the OS splits the bytes
 //! into reads.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -71,6 +72,10 @@ pub struct FaultPlan {
     pub to_host: StreamFaults,
     /// Triggers the cameras miss.
     pub missed_triggers: BTreeSet<MissedTrigger>,
+    /// Extra trigger latency, in nanoseconds, of a head's DMD (0 = head A)
+    /// beyond its profile: a slow or misconfigured projector whose patterns
+    /// light up late, and may leave their exposure.
+    pub projector_lag_ns: BTreeMap<u8, u64>,
     /// The board vanishes (hears and says nothing more, like a board whose
     /// USB died) once its virtual clock reaches this tick: "goes silent
     /// mid-scan" at a point fixed in board time, whatever the host's pace.

@@ -378,3 +378,31 @@ fn noisy_link_still_runs_every_request_exactly_once() {
     // 16 exposures x 2 heads x (camera + projector pulse) x 2 edges, once.
     assert_eq!(recorded_edges(&board).len(), 16 * 2 * 2 * 2);
 }
+
+#[test]
+fn projector_slower_than_its_profile_is_caught_lighting_outside_the_exposure() {
+    // 3 us of extra DMD latency: every projector edge is late (beyond the
+    // 100 ns jitter, within the late window), and the last of the 24
+    // patterns, which had 1.5 us to spare, now ends after the exposure.
+    let faults = FaultPlan {
+        projector_lag_ns: [(0, 3_000)].into(),
+        ..FaultPlan::none()
+    };
+    let mut rig = rig(faults, PATIENT);
+    let plan = examples::multiplexed_24_at_5khz(3);
+    let outcome = rig.client.run_plan(&plan, 1_000_000, |_| {}).expect("runs");
+    assert_eq!(outcome.state, ScanState::Done);
+    let r = outcome.report;
+    assert_eq!(r.late, 3 * 24 * 2, "{r:?}");
+    assert_eq!((r.patterns_checked, r.out_of_window), (3 * 24, 3), "{r:?}");
+    let outside: Vec<(u32, u16)> = outcome
+        .events
+        .iter()
+        .filter_map(|e| match *e {
+            Event::PatternOutsideExposure { cycle, slot, .. } => Some((cycle, slot)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(outside, vec![(0, 23), (1, 23), (2, 23)]);
+    assert!(!outcome.is_clean());
+}

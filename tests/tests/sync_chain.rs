@@ -65,9 +65,31 @@ fn run_on(rig: &mut PtyRig, plan: &ScanPlan) -> ScanOutcome {
     }
     // Each output edge comes back once on its feedback line.
     assert_eq!(outcome.report.expected as usize, planned.len());
+    // The board's own verdict: every pattern of every head and cycle was
+    // checked from its captures, and lit inside its exposure.
+    assert_eq!(
+        outcome.report.patterns_checked as usize,
+        planned_patterns(plan)
+    );
+    assert_eq!(outcome.report.out_of_window, 0);
 
     assert_cameras_saw_their_slots(plan, rig);
     outcome
+}
+
+/// Patterns a plan shows in all: per cycle, each slot once per head its
+/// exposure names.
+fn planned_patterns(plan: &ScanPlan) -> usize {
+    let per_cycle: usize = plan
+        .exposures()
+        .map(|e| {
+            e.slots.len()
+                * (0..plan.heads.len())
+                    .filter(|&h| e.entry.heads.contains(h))
+                    .count()
+        })
+        .sum();
+    per_cycle * plan.repeat_count as usize
 }
 
 /// Every camera exposure holds exactly its exposure's patterns, each shown

@@ -84,7 +84,7 @@ pub fn answers_commit(frame: &[u8]) -> bool {
 }
 
 /// The simulated heads for `plan` (absent ones padded to `MAX_HEADS`), from
-/// their models' profiles, with the configured missed triggers and seeds.
+/// their models' profiles, with the configured device faults and seeds.
 /// The plan as read must compile to `committed`, the dispatcher's table; if
 /// it ever did not, the heads still follow the plan's header but the DMDs
 /// keep their profile's display time.
@@ -111,7 +111,14 @@ pub fn build_heads(
                 .seed
                 .wrapping_mul(0x9E37_79B9_7F4A_7C15)
                 .wrapping_add(index as u64);
-            let mut head = SimHead::new(wiring, projector_config(wiring.projector), camera, seed);
+            let mut projector = projector_config(wiring.projector);
+            projector.trigger_delay.latency_ns += config
+                .faults
+                .projector_lag_ns
+                .get(&(index as u8))
+                .copied()
+                .unwrap_or(0);
+            let mut head = SimHead::new(wiring, projector, camera, seed);
             if same_table {
                 head.projector
                     .set_display_sequence(display_sequence_ns(plan, index));

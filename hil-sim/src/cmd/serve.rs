@@ -26,6 +26,10 @@ pub struct Args {
     /// counted from the last plan commit). Repeatable.
     #[arg(long, value_name = "HEAD:INDEX", value_parser = parse_missed_trigger)]
     miss_trigger: Vec<MissedTrigger>,
+    /// Fault: the DMD of head HEAD (0 = A) lags NS nanoseconds beyond its
+    /// profile. Repeatable.
+    #[arg(long, value_name = "HEAD:NS", value_parser = parse_projector_lag)]
+    projector_lag: Vec<(u8, u64)>,
     /// Fault: random bit flips on both directions, per million bytes.
     #[arg(long, default_value_t = 0)]
     flip_ppm: u32,
@@ -42,6 +46,16 @@ fn parse_missed_trigger(text: &str) -> Result<MissedTrigger, String> {
         camera: head.parse().map_err(|e| format!("head {head:?}: {e}"))?,
         trigger_index: index.parse().map_err(|e| format!("index {index:?}: {e}"))?,
     })
+}
+
+fn parse_projector_lag(text: &str) -> Result<(u8, u64), String> {
+    let (head, lag) = text
+        .split_once(':')
+        .ok_or_else(|| format!("expected HEAD:NS, got {text:?}"))?;
+    Ok((
+        head.parse().map_err(|e| format!("head {head:?}: {e}"))?,
+        lag.parse().map_err(|e| format!("lag {lag:?}: {e}"))?,
+    ))
 }
 
 impl Args {
@@ -66,6 +80,7 @@ impl Args {
             },
             missed_triggers: self.miss_trigger.iter().copied().collect(),
             vanish_at_tick: self.vanish_at_tick,
+            projector_lag_ns: self.projector_lag.iter().copied().collect(),
         }
     }
 }

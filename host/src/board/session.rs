@@ -31,12 +31,16 @@ pub struct ScanOutcome {
 }
 
 impl ScanOutcome {
-    /// True when the scan ran to its end with every feedback edge on time.
+    /// True when the scan ran to its end with every feedback edge on time
+    /// and every pattern's light checked inside its exposure.
     pub fn is_clean(&self) -> bool {
+        let r = &self.report;
         self.state == ScanState::Done
-            && self.report.expected == self.report.on_time
-            && self.report.unexpected == 0
-            && self.report.events_dropped == 0
+            && r.expected == r.on_time
+            && r.unexpected == 0
+            && r.events_dropped == 0
+            && r.out_of_window == 0
+            && r.patterns_unchecked == 0
     }
 }
 

@@ -247,6 +247,18 @@ fn print_event(out: &mut impl Write, event: &Event, hz: u32) -> std::io::Result<
             out,
             "event  tick {measured_tick:>14}  feedback {ch} {level:?} UNEXPECTED"
         ),
+        Event::PatternOutsideExposure {
+            head,
+            cycle,
+            exposure,
+            slot,
+            light_ticks: (light_on, light_off),
+            exposure_ticks: (open, close),
+        } => writeln!(
+            out,
+            "event  tick {light_on:>14}  head {head} cycle {cycle} exposure {exposure} slot {slot}: \
+             light {light_on}..{light_off} OUTSIDE exposure {open}..{close}"
+        ),
         ref other => writeln!(out, "event  {other:?}"),
     }
 }
@@ -276,6 +288,13 @@ fn print_outcome(out: &mut impl Write, outcome: &ScanOutcome, hz: u32) -> std::i
         r.worst_error_ticks,
         ticks_us(r.worst_error_ticks as u64, hz)
     )?;
+    writeln!(
+        out,
+        "patterns        {} checked inside their exposure by the board, {} outside, {} unchecked",
+        r.patterns_checked - r.out_of_window.min(r.patterns_checked),
+        r.out_of_window,
+        r.patterns_unchecked
+    )?;
     if r.events_dropped > 0 {
         writeln!(
             out,
@@ -291,6 +310,13 @@ fn check_outcome(outcome: &ScanOutcome) -> anyhow::Result<()> {
     let r = outcome.report;
     if outcome.state != ScanState::Done {
         bail!("the scan ended {:?}, not Done", outcome.state);
+    }
+    if r.out_of_window > 0 {
+        bail!(
+            "{} of {} patterns were lit outside their camera exposure",
+            r.out_of_window,
+            r.patterns_checked
+        );
     }
     if r.late + r.missing + r.unexpected > 0 {
         bail!(
