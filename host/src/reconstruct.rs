@@ -386,6 +386,8 @@ impl Reconstructor {
             return;
         };
         // CRB phase noise of the finest period -> projector pixels -> metres along the ray.
+        // With both directions this is the column-only figure: an upper bound, since the
+        // two-ray solution also uses the row.
         let sigma_phi = self.noise_times_crb / b0;
         let sigma_px = sigma_phi * p0 / tau;
         out.sigma_m = self.triangulator.range_per_px(i, ProjectorAxis::Column, u) * sigma_px;
