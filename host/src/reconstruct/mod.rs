@@ -14,13 +14,15 @@
 //! runs the same stages as separate passes and times them, for the bench's breakdown;
 //! both give identical results (tested).
 
+mod cloud;
+
 use std::time::Instant;
 
 use rayon::prelude::*;
 
 use crate::calibration::{CameraModel, Head, ProjectorModel};
 use crate::phase::{PhaseError, PhaseShift};
-use crate::point_cloud::{grid_normal, PointCloud};
+use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::triangulation::{ProjectorAxis, Triangulator};
 use crate::unwrap::heterodyne::{Heterodyne, MAX_PERIODS};
@@ -527,67 +529,14 @@ impl Reconstructor {
         Ok((Reconstruction { pixels, cloud }, times))
     }
 
-    /// Compacts valid pixels into a cloud (row-major order): rows are counted, then
-    /// filled in parallel into exactly sized arrays (normals straight from the grid).
+    /// Compacts valid pixels into a cloud (see [`cloud::compact`]).
     fn cloud(&self, pixels: &Raster<PixelResult>) -> PointCloud {
-        let (w, h) = pixels.size();
-        let valid = |p: &PixelResult| p.status == PixelStatus::Valid;
-        let counts: Vec<usize> = pixels
-            .data
-            .par_chunks(w.max(1))
-            .map(|row| row.iter().filter(|p| valid(p)).count())
-            .collect();
-        let total: usize = counts.iter().sum();
-        let mut points = vec![[0.0f32; 3]; total];
-        let mut normals = vec![[0.0f32; 3]; if self.config.normals { total } else { 0 }];
-        let mut colours = vec![[0u8; 3]; total];
-        let mut quality = vec![0.0f32; total];
-        // Split the outputs into one slice per row.
-        let mut parts = Vec::with_capacity(h);
-        let (mut p, mut n, mut c, mut q) = (
-            points.as_mut_slice(),
-            normals.as_mut_slice(),
-            colours.as_mut_slice(),
-            quality.as_mut_slice(),
-        );
-        for (y, &count) in counts.iter().enumerate() {
-            let (p0, p1) = p.split_at_mut(count);
-            let (n0, n1) = n.split_at_mut(if self.config.normals { count } else { 0 });
-            let (c0, c1) = c.split_at_mut(count);
-            let (q0, q1) = q.split_at_mut(count);
-            parts.push((y, p0, n0, c0, q0));
-            (p, n, c, q) = (p1, n1, c1, q1);
-        }
-        let centre = self.triangulator.camera().centre_m();
-        let view = [centre.x as f32, centre.y as f32, centre.z as f32];
-        let get = |x: usize, y: usize| pixels.data[y * w + x].point_m;
-        parts.into_par_iter().for_each(|(y, p, n, c, q)| {
-            let row = &pixels.data[y * w..(y + 1) * w];
-            let mut k = 0;
-            for (x, px) in row.iter().enumerate() {
-                if !valid(px) {
-                    continue;
-                }
-                p[k] = px.point_m;
-                if !n.is_empty() {
-                    let normal = grid_normal(&get, w, h, x, y, view);
-                    n[k] = if normal[0].is_finite() {
-                        normal
-                    } else {
-                        [0.0; 3]
-                    };
-                }
-                c[k] = [(px.background.clamp(0.0, 1.0) * 255.0 + 0.5) as u8; 3];
-                q[k] = px.sigma_m;
-                k += 1;
-            }
-        });
-        PointCloud {
-            points_m: points,
-            normals: self.config.normals.then_some(normals),
-            colours: Some(colours),
-            quality_m: Some(quality),
-        }
+        let c = self.triangulator.camera().centre_m();
+        cloud::compact(
+            pixels,
+            self.config.normals,
+            [c.x as f32, c.y as f32, c.z as f32],
+        )
     }
 }
 
