@@ -12,7 +12,7 @@
 
 use rayon::prelude::*;
 
-use super::{fringe_order, same_size, AbsolutePhase, PixelStatus, UnwrapError};
+use super::{check_temporal_inputs, fringe_order, AbsolutePhase, PixelStatus, UnwrapError};
 use crate::raster::Raster;
 
 /// Largest number of periods (a fixed bound keeps the per-pixel kernel on the stack).
@@ -180,21 +180,8 @@ impl Heterodyne {
         wrapped: &[&Raster<f32>],
         mask: Option<&Raster<bool>>,
     ) -> Result<AbsolutePhase, UnwrapError> {
-        if wrapped.len() != self.periods_px.len() {
-            return Err(UnwrapError::WrongInputCount {
-                method: "heterodyne",
-                expected: self.periods_px.len(),
-                got: wrapped.len(),
-            });
-        }
-        let (width, height) = same_size(wrapped)?;
-        if let Some(m) = mask.filter(|m| m.size() != (width, height)) {
-            return Err(UnwrapError::SizeMismatch {
-                index: wrapped.len(),
-                expected: (width, height),
-                got: m.size(),
-            });
-        }
+        let (width, height) =
+            check_temporal_inputs("heterodyne", self.periods_px.len(), wrapped, mask)?;
         let mut phase = vec![f32::NAN; width * height];
         let mut status = vec![PixelStatus::Masked; width * height];
         phase

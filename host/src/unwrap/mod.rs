@@ -131,6 +131,32 @@ pub(crate) fn same_size<T>(maps: &[&Raster<T>]) -> Result<(usize, usize), Unwrap
     Ok(expected)
 }
 
+/// Checks the inputs of a temporal unwrapper: one wrapped map per period, all of one
+/// size, and a mask (if any) of that size too. Returns the common `(width, height)`.
+pub(crate) fn check_temporal_inputs(
+    method: &'static str,
+    expected_maps: usize,
+    wrapped: &[&Raster<f32>],
+    mask: Option<&Raster<bool>>,
+) -> Result<(usize, usize), UnwrapError> {
+    if wrapped.len() != expected_maps {
+        return Err(UnwrapError::WrongInputCount {
+            method,
+            expected: expected_maps,
+            got: wrapped.len(),
+        });
+    }
+    let (width, height) = same_size(wrapped)?;
+    if let Some(m) = mask.filter(|m| m.size() != (width, height)) {
+        return Err(UnwrapError::SizeMismatch {
+            index: wrapped.len(),
+            expected: (width, height),
+            got: m.size(),
+        });
+    }
+    Ok((width, height))
+}
+
 /// Rounds `(estimate - wrapped) / 2 pi` to the fringe order; `None` when the residual
 /// exceeds `max_residual_rad` (the estimate is too far from any order to trust).
 #[inline]

@@ -13,7 +13,7 @@
 
 use rayon::prelude::*;
 
-use super::{same_size, AbsolutePhase, PixelStatus, UnwrapError};
+use super::{check_temporal_inputs, AbsolutePhase, PixelStatus, UnwrapError};
 use crate::raster::Raster;
 
 /// Largest number of periods.
@@ -168,21 +168,7 @@ impl Pdm {
         wrapped: &[&Raster<f32>],
         mask: Option<&Raster<bool>>,
     ) -> Result<AbsolutePhase, UnwrapError> {
-        if wrapped.len() != self.periods_px.len() {
-            return Err(UnwrapError::WrongInputCount {
-                method: "pdm",
-                expected: self.periods_px.len(),
-                got: wrapped.len(),
-            });
-        }
-        let (width, height) = same_size(wrapped)?;
-        if let Some(m) = mask.filter(|m| m.size() != (width, height)) {
-            return Err(UnwrapError::SizeMismatch {
-                index: wrapped.len(),
-                expected: (width, height),
-                got: m.size(),
-            });
-        }
+        let (width, height) = check_temporal_inputs("pdm", self.periods_px.len(), wrapped, mask)?;
         let results: Vec<(f32, PixelStatus)> = (0..width * height)
             .into_par_iter()
             .map(|i| {
