@@ -142,6 +142,20 @@ pub enum ScanError {
     /// Registration or merging failed.
     #[error("fusion")]
     Fusion(#[from] FusionError),
+    /// Writing the results failed (nothing half-written is left behind).
+    #[error("writing the scan")]
+    Output(#[from] output::OutputError),
+}
+
+/// Runs [`run_sim`] and, only when it succeeded, writes the result into
+/// `dir` ([`output::write_scan`]): a failed scan leaves no `scan.ply`.
+pub fn scan_to_dir(
+    config: &ScanConfig,
+    dir: &std::path::Path,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<crate::io::report::ScanReport, ScanError> {
+    let result = run_sim(config, progress)?;
+    Ok(output::write_scan(dir, &result)?)
 }
 
 /// A step of progress, for bars and logs.

@@ -90,10 +90,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     };
-    let result =
-        scan::run_sim(&config, &mut on_progress).context("scan failed; no scan.ply written")?;
-    let report = scan::output::write_scan(&args.out, &result)
-        .with_context(|| format!("writing the scan to {}", args.out.display()))?;
+    let report = scan::scan_to_dir(&config, &args.out, &mut on_progress).with_context(|| {
+        format!(
+            "scan into {} failed; no scan.ply written",
+            args.out.display()
+        )
+    })?;
     for h in &report.heads {
         println!(
             "head {}: {} points, RMSE {:.1} um (predicted {:.1} um; median {:.1} um, {} over 1 mm), coverage {:.3}",
