@@ -44,10 +44,6 @@ pub struct IcpReport {
     pub iterations: usize,
     /// Converged before the iteration limit.
     pub converged: bool,
-    /// Refined pose against the twin's true pose: rotation, degrees.
-    pub pose_error_vs_truth_deg: f64,
-    /// Refined pose against the truth: translation, micrometres.
-    pub pose_error_vs_truth_um: f64,
 }
 
 /// The fused cloud's figures.
@@ -59,8 +55,13 @@ pub struct FusedReport {
     pub rmse_um: f64,
     /// Fraction of the measurable object surface covered.
     pub coverage: f64,
-    /// Registration.
-    pub icp: IcpReport,
+    /// Registration (null when none ran: heads with no shared surface).
+    pub icp: Option<IcpReport>,
+    /// B->A pose used (ICP-refined, or calibrated) against the twin's
+    /// true pose: rotation, degrees.
+    pub pose_error_vs_truth_deg: f64,
+    /// The same: translation, micrometres.
+    pub pose_error_vs_truth_um: f64,
 }
 
 /// Everything `report.json` holds.
@@ -88,6 +89,8 @@ pub struct ScanReport {
     pub heads: Vec<HeadReport>,
     /// The fused cloud.
     pub fused: FusedReport,
+    /// Loud caveats of this run (e.g. aliased pixels masked out).
+    pub warnings: Vec<String>,
     /// Wall-clock milliseconds per stage.
     pub timings_ms: std::collections::BTreeMap<String, f64>,
 }
@@ -153,17 +156,18 @@ mod tests {
                 points: 0,
                 rmse_um: 0.0,
                 coverage: 0.0,
-                icp: IcpReport {
+                icp: Some(IcpReport {
                     rotation_deg: 0.0,
                     translation_um: 0.0,
                     overlap_rmse_um: 0.0,
                     fitness: 0.0,
                     iterations: 0,
                     converged: true,
-                    pose_error_vs_truth_deg: 0.0,
-                    pose_error_vs_truth_um: 0.0,
-                },
+                }),
+                pose_error_vs_truth_deg: 0.0,
+                pose_error_vs_truth_um: 0.0,
             },
+            warnings: Vec::new(),
             timings_ms: [("setup".to_string(), 1.0)].into(),
         };
         let path = dir.join("report.json");

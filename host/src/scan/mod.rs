@@ -14,7 +14,9 @@
 //! in memory; [`output::write_scan`] writes it (every file via a temporary
 //! and a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
 
+pub mod capture;
 mod clouds;
+mod fuse;
 pub mod metrics;
 pub mod output;
 pub mod plan;
@@ -27,19 +29,16 @@ use hil_sim::board::SimBoardConfig;
 use hil_sim::twin::scenes::{built_in, Detail};
 use hil_sim::twin::{SensorModel, TwinError, TwinRig};
 use nalgebra::{Isometry3, Vector3};
-use protocol::HeadSet;
 
 use crate::board::ClientConfig;
-use crate::fusion::{
-    self, DuplicateRule, FuseParams, FusionError, IcpParams, IcpResult, MergeParams,
-};
+use crate::fusion::{FusionError, IcpResult};
 use crate::patterns::three_pitch_periods_px;
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
 use crate::rig::sim::{SimRig, SimRigConfig};
-use crate::rig::{Board, Camera, Projector, RigError};
-use clouds::{from_fusion, points_f64, to_fusion, transformed};
+use crate::rig::RigError;
+use clouds::{from_fusion, points_f64, transformed};
 use metrics::{PixelAccuracy, Sample};
 
 /// How the two heads share time.
@@ -47,9 +46,11 @@ use metrics::{PixelAccuracy, Sample};
 pub enum Mode {
     /// Head A alone, then head B alone (seed 000's reference runs): no aliasing.
     Sequential,
-    /// Both heads at once with identical sequences (not implemented yet).
+    /// Both heads at once with identical sequences: the overlap is aliased
+    /// and masked out (no de-aliaser yet).
     Simultaneous,
-    /// Both at once, head A's shifts at temporal frequency 1, B's at 2 (not implemented yet).
+    /// Both at once, N = 8, head A's shifts at temporal frequency 1, B's at 2,
+    /// separated per pixel by [`crate::demultiplex`].
     SimultaneousMultiplexed,
 }
 
@@ -122,9 +123,14 @@ pub enum ScanError {
         /// Projectors in its rig.
         projectors: usize,
     },
-    /// The mode is not implemented yet.
-    #[error("PLACEHOLDER: mode {0:?} is not implemented yet; use --mode sequential")]
-    ModeNotImplemented(Mode),
+    /// Demultiplexing a camera's frames failed.
+    #[error("demultiplex head {head}")]
+    Demultiplex {
+        /// Head name.
+        head: &'static str,
+        /// Why.
+        source: crate::demultiplex::DemuxError,
+    },
     /// The plan could not be built.
     #[error("plan")]
     Plan(#[from] plan::PlanBuildError),
@@ -200,13 +206,15 @@ pub struct HeadResult {
 pub struct FusedResult {
     /// The cloud, head A's frame.
     pub cloud: PointCloud,
-    /// Registration of B onto A.
-    pub icp: IcpResult,
+    /// Registration of B onto A (`None` when the heads share no surface,
+    /// as in simultaneous mode with the aliased overlap masked out).
+    pub icp: Option<IcpResult>,
     /// Point-to-plane RMSE against the true surface, metres.
     pub plane_rmse_m: f64,
     /// Coverage of the measurable object surface.
     pub coverage: f64,
-    /// Error of the ICP-refined B->A against the twin's true B->A: (degrees, metres).
+    /// Error of the B->A pose used (ICP-refined, or calibrated without ICP)
+    /// against the twin's true B->A: (degrees, metres).
     pub residual_pose_error: (f64, f64),
 }
 
@@ -223,6 +231,8 @@ pub struct ScanResult {
     pub surface_samples: usize,
     /// Wall-clock time per stage, milliseconds, in order.
     pub timings_ms: Vec<(&'static str, f64)>,
+    /// Loud caveats of this run (masked aliased pixels, ...).
+    pub warnings: Vec<String>,
 }
 
 struct Clock {
@@ -245,9 +255,6 @@ pub fn run_sim(
     config: &ScanConfig,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<ScanResult, ScanError> {
-    if config.mode != Mode::Sequential {
-        return Err(ScanError::ModeNotImplemented(config.mode));
-    }
     let mut clock = Clock {
         last: Instant::now(),
         timings: Vec::new(),
@@ -270,8 +277,6 @@ pub fn run_sim(
     tracing::warn!(
         "calibration: the digital twin's TRUE device models, not an estimated calibration"
     );
-    let frames_per_head = config.periods_px.len() * config.steps;
-    let patterns = plan::fringe_sequence(config.projector_px, &config.periods_px, config.steps);
     let mut sensor = SensorModel::mono12();
     // Exposure setting: a full-on pattern on a white diffuser at the
     // reference distance fills 70 % of the well over one display time.
@@ -300,25 +305,34 @@ pub fn run_sim(
     )?;
     clock.lap("setup");
 
-    // Capture: head A alone, then head B alone.
-    let mut frames = Vec::new();
-    for (h, heads) in [HeadSet::A, HeadSet::B].into_iter().enumerate() {
-        let name = ["capture A", "capture B"][h];
-        progress(Progress::Stage { name, total: 2 });
-        sim.load_sequence(h, &patterns)?;
-        let plan = plan::one_pattern_per_exposure(heads, frames_per_head)?;
-        let outcome = sim.run_plan(&plan)?;
-        tracing::info!(
-            head = twin_truth::HEAD_NAMES[h],
-            start_tick = outcome.start_tick,
-            worst_error_ticks = outcome.report.worst_error_ticks,
-            "board ran the plan clean"
-        );
-        progress(Progress::Step);
-        frames.push(sim.take_frames(h)?);
-        progress(Progress::Step);
-        progress(Progress::Done);
-        clock.lap(["capture_a", "capture_b"][h]);
+    let mut captured = capture::capture(&mut sim, config, progress)?;
+    clock.lap("capture");
+    let mut warnings = Vec::new();
+    if config.mode == Mode::Simultaneous {
+        for (h, frames) in captured.frames.iter_mut().enumerate() {
+            let renderer = twin.renderer(h)?;
+            let g = renderer.geometry();
+            // Widened by a few pixels: defocus and the other projector's
+            // light edge alias the pixels next to the true overlap too.
+            let overlap = &dilate(&g.overlap, g.width as usize, g.height as usize, 3);
+            let masked = overlap.iter().filter(|&&o| o).count();
+            let warning = format!(
+                "PLACEHOLDER: simultaneous mode: camera {} has {masked} pixels lit by both projectors \
+                 (aliased fringes); they are MASKED OUT using the twin's truth overlap mask, since the \
+                 learned de-aliaser (seed 000) does not exist yet",
+                twin_truth::HEAD_NAMES[h]
+            );
+            tracing::warn!("{warning}");
+            warnings.push(warning);
+            for f in frames.iter_mut() {
+                for (v, &o) in f.data.iter_mut().zip(overlap) {
+                    if o {
+                        // Zero modulation: the reconstruction masks the pixel.
+                        *v = 0.0;
+                    }
+                }
+            }
+        }
     }
 
     // Reconstruct each head in its own frame.
@@ -327,11 +341,11 @@ pub fn run_sim(
         name: "reconstruct",
         total: 2,
     });
-    for (h, head_frames) in frames.iter().enumerate() {
+    for (h, head_frames) in captured.frames.iter().enumerate() {
         let head_name = twin_truth::HEAD_NAMES[h];
         let mut rc_config = ReconstructConfig::new(config.periods_px.clone());
-        rc_config.steps = config.steps;
-        rc_config.noise_sigma = noise_sigma;
+        rc_config.steps = captured.steps;
+        rc_config.noise_sigma = noise_sigma * captured.noise_factor;
         let rc = Reconstructor::from_head(&calibration.heads[h], rc_config).map_err(|source| {
             ScanError::Reconstruct {
                 head: head_name,
@@ -359,22 +373,16 @@ pub fn run_sim(
     });
     let b_from_a = twin_truth::b_from_a(twin.rig());
     let a_from_b_calibrated: Isometry3<f64> = b_from_a.inverse();
-    let fused = fusion::fuse_heads(
-        &to_fusion(&recons[0].cloud),
-        &to_fusion(&recons[1].cloud),
+    let fused = fuse::fuse(
+        &recons[0].cloud,
+        &recons[1].cloud,
         &a_from_b_calibrated,
-        &fuse_params(config),
+        config,
+        &mut warnings,
     )?;
     progress(Progress::Step);
     progress(Progress::Done);
     clock.lap("fuse");
-    tracing::info!(
-        rotation_deg = fused.icp.rotation_correction_deg,
-        translation_um = fused.icp.translation_correction_m * 1e6,
-        overlap_rmse_um = fused.icp.overlap_rmse_m * 1e6,
-        merged = fused.merge.b_merged,
-        "ICP refined the calibrated head-to-head pose"
-    );
 
     // Measure against the truth, everything in head A's frame.
     progress(Progress::Stage {
@@ -403,7 +411,7 @@ pub fn run_sim(
         let error_m = error_map(&recon, g, &head_from_world);
         heads.push(HeadResult {
             name: twin_truth::HEAD_NAMES[h],
-            first_frame: frames[h][0].clone(),
+            first_frame: captured.raw[h][0].clone(),
             plane_rmse_m: metrics::point_to_plane_rmse(&pts, &all_surface)?,
             coverage: metrics::coverage(&pts, &surface)?,
             reconstruction: recon,
@@ -416,7 +424,11 @@ pub fn run_sim(
     let fused_cloud = from_fusion(&fused.cloud);
     let fused_pts = points_f64(&fused_cloud);
     let true_a_from_b = b_from_a.inverse();
-    let diff = fused.icp.transform * true_a_from_b.inverse();
+    let used = fused
+        .icp
+        .as_ref()
+        .map_or(a_from_b_calibrated, |icp| icp.transform);
+    let diff = used * true_a_from_b.inverse();
     let fused = FusedResult {
         plane_rmse_m: metrics::point_to_plane_rmse(&fused_pts, &all_surface)?,
         coverage: metrics::coverage(&fused_pts, &surface)?,
@@ -436,27 +448,8 @@ pub fn run_sim(
         fused,
         surface_samples: surface.len(),
         timings_ms: clock.timings,
+        warnings,
     })
-}
-
-/// Fusion settings for the scan's sampling: merge radius about one camera
-/// pixel's footprint at 0.5 m.
-fn fuse_params(config: &ScanConfig) -> FuseParams {
-    // Footprint of a pixel at 0.5 m for a 42 degree camera of this width.
-    let pitch_m = 0.5 * 2.0 * (21f64.to_radians()).tan() / config.camera_px.0 as f64;
-    FuseParams {
-        normals_k: 12,
-        sensor_a_m: Vector3::zeros(),
-        icp: IcpParams {
-            final_gate_m: (4.0 * pitch_m).min(IcpParams::default().initial_gate_m),
-            ..IcpParams::default()
-        },
-        merge: MergeParams {
-            radius_m: pitch_m,
-            rule: DuplicateRule::WeightedMean,
-            default_sigma_m: 1e-4,
-        },
-    }
 }
 
 /// |reconstructed - true| per pixel, metres (NaN where either is missing).
@@ -488,4 +481,22 @@ fn error_map(
         height: recon.pixels.height,
         data,
     }
+}
+
+/// `mask` grown by `radius` pixels (square neighbourhood).
+fn dilate(mask: &[bool], width: usize, height: usize, radius: usize) -> Vec<bool> {
+    let mut out = vec![false; mask.len()];
+    for y in 0..height {
+        for x in 0..width {
+            if !mask[y * width + x] {
+                continue;
+            }
+            for yy in y.saturating_sub(radius)..(y + radius + 1).min(height) {
+                for xx in x.saturating_sub(radius)..(x + radius + 1).min(width) {
+                    out[yy * width + xx] = true;
+                }
+            }
+        }
+    }
+    out
 }

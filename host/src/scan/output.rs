@@ -37,7 +37,6 @@ pub enum OutputError {
 pub fn report(scan: &ScanResult) -> ScanReport {
     let um = 1e6;
     let c = &scan.config;
-    let icp = &scan.fused.icp;
     ScanReport {
         scene: c.scene.clone(),
         mode: match c.mode {
@@ -76,17 +75,18 @@ pub fn report(scan: &ScanResult) -> ScanReport {
             points: scan.fused.cloud.len(),
             rmse_um: scan.fused.plane_rmse_m * um,
             coverage: scan.fused.coverage,
-            icp: IcpReport {
+            icp: scan.fused.icp.as_ref().map(|icp| IcpReport {
                 rotation_deg: icp.rotation_correction_deg,
                 translation_um: icp.translation_correction_m * um,
                 overlap_rmse_um: icp.overlap_rmse_m * um,
                 fitness: icp.fitness,
                 iterations: icp.iterations,
                 converged: icp.converged,
-                pose_error_vs_truth_deg: scan.fused.residual_pose_error.0,
-                pose_error_vs_truth_um: scan.fused.residual_pose_error.1 * um,
-            },
+            }),
+            pose_error_vs_truth_deg: scan.fused.residual_pose_error.0,
+            pose_error_vs_truth_um: scan.fused.residual_pose_error.1 * um,
         },
+        warnings: scan.warnings.clone(),
         timings_ms: scan.timings_ms.iter().map(|(n, ms)| (n.to_string(), *ms)).collect(),
     }
 }

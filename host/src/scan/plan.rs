@@ -26,6 +26,34 @@ pub fn fringe_sequence(dmd_px: (u32, u32), periods_px: &[f64], steps: usize) -> 
     frames
 }
 
+/// Column fringes with arbitrary shifts (radians), period-major: for each
+/// period, one frame per shift; 8-bit grey, full contrast.
+pub fn shifted_fringes(
+    dmd_px: (u32, u32),
+    periods_px: &[f64],
+    shifts_rad: &[f64],
+) -> Vec<Raster<f32>> {
+    let (w, h) = (dmd_px.0 as usize, dmd_px.1 as usize);
+    let mut frames = Vec::with_capacity(periods_px.len() * shifts_rad.len());
+    for &period in periods_px {
+        for &shift in shifts_rad {
+            // One row, repeated: column fringes do not change down the DMD.
+            let row: Vec<f32> = (0..w)
+                .map(|u| {
+                    let v = 0.5 + 0.5 * (std::f64::consts::TAU * u as f64 / period + shift).cos();
+                    (v as f32 * 255.0).round() / 255.0
+                })
+                .collect();
+            frames.push(Raster {
+                width: w,
+                height: h,
+                data: row.repeat(h),
+            });
+        }
+    }
+    frames
+}
+
 /// Why a plan cannot be built.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum PlanBuildError {

@@ -44,9 +44,9 @@ pub struct Args {
 enum ModeArg {
     /// Head A alone, then head B alone.
     Sequential,
-    /// Both heads at once, identical sequences (PLACEHOLDER).
+    /// Both heads at once, identical sequences; aliased overlap masked out (PLACEHOLDER for a de-aliaser).
     Simultaneous,
-    /// Both at once, temporal frequencies 1 and 2 (PLACEHOLDER).
+    /// Both at once, N = 8, head A on temporal bin 1, head B on bin 2, demultiplexed per pixel.
     SimultaneousMultiplexed,
 }
 
@@ -104,10 +104,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let f = &report.fused;
     println!(
-        "fused: {} points, RMSE {:.1} um (point-to-plane), coverage {:.3}; ICP correction {:.4} deg / {:.1} um, overlap RMSE {:.1} um",
-        f.points, f.rmse_um, f.coverage, f.icp.rotation_deg, f.icp.translation_um, f.icp.overlap_rmse_um
+        "fused: {} points, RMSE {:.1} um (point-to-plane), coverage {:.3}",
+        f.points, f.rmse_um, f.coverage
     );
+    match &f.icp {
+        Some(icp) => println!(
+            "ICP correction of the calibrated pose: {:.4} deg / {:.1} um, overlap RMSE {:.1} um",
+            icp.rotation_deg, icp.translation_um, icp.overlap_rmse_um
+        ),
+        None => println!("no ICP: the heads share no usable surface; calibrated pose used"),
+    }
     println!("calibration: {}", report.calibration);
+    for w in &report.warnings {
+        eprintln!("slscan: WARNING: {w}");
+    }
     println!("wrote {}", args.out.join("scan.ply").display());
     Ok(())
 }
