@@ -66,6 +66,19 @@ pub enum RigError {
         /// Patterns shown.
         got: usize,
     },
+    /// A frame's exposure window (board clock) did not hold exactly the
+    /// patterns the plan puts in it, each shown whole.
+    #[error("head {head} frame {frame}: expected patterns {expected:?} shown whole, the exposure saw (pattern, ns) {seen:?}")]
+    Sequencing {
+        /// Head index.
+        head: usize,
+        /// Frame index.
+        frame: usize,
+        /// Pattern indices the plan puts in this exposure.
+        expected: Vec<u32>,
+        /// (pattern index, ns inside the window) of what was shown.
+        seen: Vec<(u32, u64)>,
+    },
     /// No such head on this rig.
     #[error("head {head} does not exist (the rig has {heads})")]
     NoSuchHead {

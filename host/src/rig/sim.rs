@@ -12,7 +12,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use hil_sim::board::{spawn_on_pty, SimBoardConfig, SimBoardHandle};
-use hil_sim::devices::projector::Displayed;
+use hil_sim::devices::{patterns_in_window, Displayed};
 use hil_sim::twin::{Display, Exposure, Pattern, ProjectorTimeline, SensorModel, Shown, TwinRig};
 use protocol::ScanPlan;
 use rand::SeedableRng;
@@ -48,8 +48,8 @@ pub struct SimRig {
     sequences: Vec<Vec<Arc<Pattern>>>,
     sensor: SensorModel,
     rng: ChaCha8Rng,
-    /// Camera triggers per head in the last plan run.
-    triggers: Vec<usize>,
+    /// Per head, per camera trigger of the last plan: patterns its exposure holds.
+    slots_per_frame: Vec<Vec<usize>>,
 }
 
 impl SimRig {
@@ -74,7 +74,7 @@ impl SimRig {
             twin,
             sensor: config.sensor,
             rng: ChaCha8Rng::seed_from_u64(config.noise_seed),
-            triggers: vec![0; heads],
+            slots_per_frame: vec![Vec::new(); heads],
         })
     }
 
@@ -124,14 +124,48 @@ fn timeline(displayed: &[Displayed], sequence: &[Arc<Pattern>]) -> Vec<Shown> {
         .collect()
 }
 
+/// From the board-clock timestamps alone: frame `i` must hold exactly the
+/// next `slots[i]` patterns of the DMD's sequence, each shown whole while
+/// the shutter was open (what the plan asks for).
+fn check_sequencing(
+    head: usize,
+    windows_ns: &[(u64, u64)],
+    displayed: &[Displayed],
+    slots: &[usize],
+) -> Result<(), RigError> {
+    let mut next = 0usize;
+    for (frame, (&(start_ns, end_ns), &count)) in windows_ns.iter().zip(slots).enumerate() {
+        let seen = patterns_in_window(displayed, start_ns, end_ns);
+        let want: Vec<u32> = (next..next + count).map(|i| i as u32).collect();
+        let got: Vec<u32> = seen.iter().map(|s| s.0).collect();
+        let whole = seen.iter().all(|&(i, overlap_ns)| {
+            displayed
+                .get(i as usize)
+                .is_some_and(|d| d.end_ns - d.start_ns == overlap_ns)
+        });
+        if got != want || !whole {
+            return Err(RigError::Sequencing {
+                head,
+                frame,
+                expected: want,
+                seen,
+            });
+        }
+        next += count;
+    }
+    Ok(())
+}
+
 impl Board for SimRig {
     fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError> {
-        self.triggers = (0..self.triggers.len())
+        self.slots_per_frame = (0..self.slots_per_frame.len())
             .map(|h| {
-                plan.exposures()
+                let one_cycle: Vec<usize> = plan
+                    .exposures()
                     .filter(|e| e.entry.heads.contains(h))
-                    .count()
-                    * plan.repeat_count as usize
+                    .map(|e| e.slots.len())
+                    .collect();
+                one_cycle.repeat(plan.repeat_count as usize)
             })
             .collect();
         let outcome = self.client.run_plan(plan, START_DELAY_NS, |event| {
@@ -180,8 +214,9 @@ impl Camera for SimRig {
 
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
         self.check_head(head)?;
-        let expected = self.triggers[head];
-        let (exposures, missed, shown) = {
+        let expected = self.slots_per_frame[head].len();
+        let expected_patterns: usize = self.slots_per_frame[head].iter().sum();
+        let (exposures, missed, displayed) = {
             let board = self.board.board();
             let sim = board
                 .hardware()
@@ -194,7 +229,7 @@ impl Camera for SimRig {
             (
                 sim.camera.exposures().to_vec(),
                 sim.camera.missed().iter().map(|m| m.0).collect::<Vec<_>>(),
-                sim.projector.displayed().len(),
+                sim.projector.displayed().to_vec(),
             )
         };
         let done: Vec<_> = exposures
@@ -209,13 +244,14 @@ impl Camera for SimRig {
                 missed,
             });
         }
-        if shown != expected {
+        if displayed.len() != expected_patterns {
             return Err(RigError::PatternCount {
                 head,
-                expected,
-                got: shown,
+                expected: expected_patterns,
+                got: displayed.len(),
             });
         }
+        check_sequencing(head, &done, &displayed, &self.slots_per_frame[head])?;
         let timelines = self.timelines();
         let (w, h) = self.image_size_px(head)?;
         let mut frames = Vec::with_capacity(done.len());
@@ -244,5 +280,36 @@ impl Camera for SimRig {
             });
         }
         Ok(frames)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shown(pattern_index: u32, start_ns: u64, end_ns: u64) -> Displayed {
+        Displayed {
+            pattern_index,
+            trigger_ns: start_ns,
+            start_ns,
+            end_ns,
+        }
+    }
+
+    #[test]
+    fn each_frame_must_hold_its_own_patterns_whole() {
+        let windows = [(0, 100), (200, 300)];
+        let good = [shown(0, 10, 90), shown(1, 210, 290)];
+        check_sequencing(0, &windows, &good, &[1, 1]).unwrap();
+        // Pattern 1 lights up late and spills past the shutter.
+        let late = [shown(0, 10, 90), shown(1, 250, 330)];
+        let err = check_sequencing(1, &windows, &late, &[1, 1]).unwrap_err();
+        assert!(
+            matches!(err, RigError::Sequencing { head: 1, frame: 1, ref seen, .. } if seen == &[(1, 50)]),
+            "{err}"
+        );
+        // Pattern 0 lingers into the next frame.
+        let lingering = [shown(0, 10, 210), shown(1, 215, 290)];
+        assert!(check_sequencing(0, &windows, &lingering, &[1, 1]).is_err());
     }
 }
