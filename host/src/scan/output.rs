@@ -91,7 +91,8 @@ pub fn report(scan: &ScanResult) -> ScanReport {
     }
 }
 
-/// Writes `dir/{camera_a,phase_a,depth_a,error_a,...}.png`, `head_a.ply`,
+/// Writes `dir/{camera,phase,depth,error}_{a,b}.png` (error: black = exact,
+/// white = 500 um or more), `head_a.ply`,
 /// `head_b.ply`, `report.json`, then `scan.ply`.
 pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError> {
     std::fs::create_dir_all(dir).map_err(|source| OutputError::Dir {
@@ -117,7 +118,7 @@ pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputErr
             &normalise_for_view(&depth),
             true,
         )?;
-        // Error picture: 0 = exact, white = 100 um or more.
+        // Error picture: 0 = exact, white = 500 um or more.
         let err = Raster {
             width: h.error_m.width,
             height: h.error_m.height,
@@ -127,7 +128,7 @@ pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputErr
                 .iter()
                 .map(|e| {
                     if e.is_finite() {
-                        (e / 100e-6).min(1.0)
+                        (e / 500e-6).min(1.0)
                     } else {
                         0.0
                     }
