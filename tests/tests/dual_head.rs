@@ -163,3 +163,76 @@ fn a_late_projector_is_caught_by_the_board_and_no_scan_is_written() {
     );
     assert!(!dir.join("scan.ply").exists());
 }
+
+/// Head A alone on a fresh simulated rig with DMD table `table` (the
+/// plan's trigger k shows `table[k]`); returns its per-pixel accuracy.
+fn head_a_with_table(
+    reorder: impl Fn(Vec<slscan::raster::Raster<f32>>) -> Vec<slscan::raster::Raster<f32>>,
+) -> slscan::scan::metrics::PixelAccuracy {
+    use hil_sim::twin::scenes::{built_in, Detail};
+    use hil_sim::twin::TwinRig;
+    use slscan::reconstruct::{ReconstructConfig, Reconstructor};
+    use slscan::rig::sim::{SimRig, SimRigConfig};
+    use slscan::rig::{Board, Camera, Projector};
+    use slscan::scan::{default_periods_px, metrics, noise_sigma, plan, sim_sensor, twin_truth};
+    use std::sync::Arc;
+
+    let config = small("large-part");
+    let detail = Detail {
+        camera: config.camera_px,
+        projector: config.projector_px,
+    };
+    let (scene, rig) = built_in("large-part", &detail).unwrap();
+    let is_object = metrics::object_ids(&scene);
+    let twin = Arc::new(TwinRig::new(scene, rig).unwrap());
+    let sensor = sim_sensor();
+    let mut sim = SimRig::start(
+        twin.clone(),
+        SimRigConfig {
+            board: SimBoardConfig::default(),
+            client: config.client,
+            sensor,
+            noise_seed: 5,
+        },
+    )
+    .unwrap();
+    let periods = default_periods_px(config.projector_px.0);
+    let patterns = plan::fringe_sequence(config.projector_px, &periods, 4);
+    let count = patterns.len();
+    sim.load_sequence(0, &reorder(patterns)).unwrap();
+    sim.run_plan(&plan::one_pattern_per_exposure(protocol::HeadSet::A, count).unwrap())
+        .expect("the board's timing is fine either way");
+    let frames = sim.take_frames(0).unwrap();
+    let cal = twin_truth::twin_calibration(twin.rig(), 2);
+    let mut rc_config = ReconstructConfig::new(periods);
+    rc_config.noise_sigma = noise_sigma(&sensor);
+    let rc = Reconstructor::from_head(&cal.heads[0], rc_config).unwrap();
+    let refs: Vec<_> = frames.iter().collect();
+    let recon = rc.reconstruct(&refs, None).unwrap();
+    let renderer = twin.renderer(0).unwrap();
+    metrics::pixel_accuracy(
+        &recon,
+        renderer.geometry(),
+        &twin_truth::head_from_world(twin.rig(), 0),
+        0,
+        &is_object,
+    )
+}
+
+#[test]
+fn a_dmd_table_off_by_one_shows_in_the_rendered_images() {
+    // The cameras render what the DMD really showed, so a host that loads
+    // its pattern table one step out of turn gets wrong phases, though the
+    // board's trigger timing is perfect.
+    let good = head_a_with_table(|p| p);
+    let rotated = head_a_with_table(|mut p| {
+        p.rotate_left(1);
+        p
+    });
+    eprintln!("DMD table in order: {good:?}\nDMD table off by one: {rotated:?}");
+    assert!(good.rmse_m < 200e-6 && good.own_coverage > 0.9, "{good:?}");
+    assert!(
+        rotated.own_coverage < 0.5 * good.own_coverage || rotated.rmse_m > 10.0 * good.rmse_m,
+        "good {good:?}, rotated {rotated:?}"
+    );
+}

@@ -107,6 +107,22 @@ pub fn default_periods_px(dmd_width_px: u32) -> Vec<f64> {
     three_pitch_periods_px(f64::from(dmd_width_px), 64).to_vec()
 }
 
+/// The simulated cameras' sensor: 12-bit mono with its exposure set so a
+/// full-on pattern on a white diffuser at the reference distance fills 70 %
+/// of the well over one pattern's display time.
+pub fn sim_sensor() -> SensorModel {
+    let mut sensor = SensorModel::mono12();
+    sensor.electrons_per_unit = 0.7 * sensor.full_well_e / plan::display_s();
+    sensor
+}
+
+/// The sensor's noise at half scale (shot + read, datasheet figures), in
+/// frame units: what the reconstruction's noise prediction assumes.
+pub fn noise_sigma(sensor: &SensorModel) -> f32 {
+    let half_e = 0.5 * sensor.full_well_e;
+    ((half_e + sensor.read_noise_e.powi(2)).sqrt() / sensor.full_well_e) as f32
+}
+
 /// What can stop a scan.
 #[derive(Debug, thiserror::Error)]
 pub enum ScanError {
@@ -277,14 +293,8 @@ pub fn run_sim(
     tracing::warn!(
         "calibration: the digital twin's TRUE device models, not an estimated calibration"
     );
-    let mut sensor = SensorModel::mono12();
-    // Exposure setting: a full-on pattern on a white diffuser at the
-    // reference distance fills 70 % of the well over one display time.
-    sensor.electrons_per_unit = 0.7 * sensor.full_well_e / plan::display_s();
-    // The sensor's noise at half scale (shot + read, datasheet figures), in
-    // frame units: what the reconstruction's noise prediction assumes.
-    let half_e = 0.5 * sensor.full_well_e;
-    let noise_sigma = ((half_e + sensor.read_noise_e.powi(2)).sqrt() / sensor.full_well_e) as f32;
+    let sensor = sim_sensor();
+    let noise_sigma = noise_sigma(&sensor);
     progress(Progress::Stage {
         name: "ray-cast cameras",
         total: 2,
