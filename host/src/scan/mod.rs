@@ -322,9 +322,11 @@ pub fn run_sim(
         for (h, frames) in captured.frames.iter_mut().enumerate() {
             let renderer = twin.renderer(h)?;
             let g = renderer.geometry();
-            // Widened by a few pixels: defocus and the other projector's
-            // light edge alias the pixels next to the true overlap too.
-            let overlap = &dilate(&g.overlap, g.width as usize, g.height as usize, 3);
+            // Widened by about 1 % of the image width (3 px at 320): defocus
+            // and the other projector's light edge alias the pixels next to
+            // the true overlap too.
+            let radius = (g.width as usize).div_ceil(100);
+            let overlap = &dilate(&g.overlap, g.width as usize, g.height as usize, radius);
             let masked = overlap.iter().filter(|&&o| o).count();
             let warning = format!(
                 "PLACEHOLDER: simultaneous mode: camera {} has {masked} pixels lit by both projectors \
