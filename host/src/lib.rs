@@ -1,12 +1,16 @@
 //! The scanner's host library: from patterns and images to metric point clouds.
 //!
 //! ```text
-//! patterns (encode) --> projector ... camera --> io::images
-//!   --> phase (wrapped phase, modulation) --> unwrap (absolute phase)
-//!   --> triangulation (with calibration::RigCalibration) --> io::ply
+//! patterns (encode) --> projector ... camera --> io::images (8/16-bit -> f32 [0, 1])
+//!   --> phase (N-step / FTP: wrapped phase, modulation, background)
+//!   --> unwrap (heterodyne | pdm | gray_code | quality_guided: absolute phase + status)
+//!   --> triangulation (calibration::RigCalibration: ray/plane or ray/ray)
+//!   --> point_cloud --> io::ply (x y z, normals, colour, quality)
 //! ```
 //!
-//! (Being written.)
+//! [`reconstruct::Reconstructor`] runs phase -> heterodyne -> triangulation in one fused
+//! pass for one head. [`synth`] is a formula-based renderer for tests and benches (not the
+//! digital twin); [`fit`] fits planes and spheres for accuracy reports.
 #![warn(missing_docs)]
 
 pub mod board;

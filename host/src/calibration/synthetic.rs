@@ -180,27 +180,22 @@ fn lens_and_vignetting(pixels: Vec<f32>, w: usize, h: usize, s: &RenderSettings)
         .collect()
 }
 
-/// `n^2` sample offsets in the unit pixel on a rank-1 (Fibonacci-like)
-/// lattice: every sample has its own x and its own y, so an edge parallel to
-/// the pixel grid is resolved to `1/n^2` of a pixel, not `1/n` as on a
-/// square `n x n` grid (which biased corners of fronto-parallel boards by
-/// up to 1/(2n) px).
+/// At least `n^2` sample offsets in the unit pixel on a Fibonacci lattice
+/// (`F_k` points, generator `F_(k-1)`, the smallest `F_k >= n^2`): every
+/// sample has its own x and its own y, and the lattice has no direction in
+/// which its points line up coarsely. A square `n x n` grid resolves edges
+/// parallel to the pixel grid only to `1/n` px, and a rank-1 lattice of
+/// `n^2` points does as badly along its own lattice lines: both biased the
+/// rendered truth of some corners by up to 0.1 px (measured at n = 4).
 fn subpixel_offsets(n: usize) -> Vec<(f64, f64)> {
-    let count = n * n;
-    let gcd = |mut a: usize, mut b: usize| {
-        while b != 0 {
-            (a, b) = (b, a % b);
-        }
-        a
-    };
-    let mut step = ((count as f64 * 0.618).round() as usize).max(1);
-    while count > 1 && gcd(step, count) != 1 {
-        step += 1;
+    let (mut prev, mut count) = (1usize, 1usize);
+    while count < n * n {
+        (prev, count) = (count, prev + count);
     }
     (0..count)
         .map(|k| {
             let fx = (k as f64 + 0.5) / count as f64;
-            let fy = ((k * step) % count) as f64 / count as f64 + 0.5 / count as f64;
+            let fy = ((k * prev) % count) as f64 / count as f64 + 0.5 / count as f64;
             (fx, fy)
         })
         .collect()
@@ -451,15 +446,15 @@ mod tests {
 
     #[test]
     fn subpixel_offsets_are_distinct_in_x_and_y() {
-        for n in [1, 2, 4, 5] {
+        for (n, fibonacci) in [(1, 1), (2, 5), (4, 21), (5, 34)] {
             let o = subpixel_offsets(n);
-            assert_eq!(o.len(), n * n);
+            assert_eq!(o.len(), fibonacci);
             let mut xs: Vec<u64> = o.iter().map(|p| (p.0 * 1e9) as u64).collect();
             let mut ys: Vec<u64> = o.iter().map(|p| (p.1 * 1e9) as u64).collect();
             xs.dedup();
             ys.sort();
             ys.dedup();
-            assert_eq!((xs.len(), ys.len()), (n * n, n * n), "n = {n}");
+            assert_eq!((xs.len(), ys.len()), (fibonacci, fibonacci), "n = {n}");
         }
     }
 

@@ -144,7 +144,10 @@ pub struct IcpResult {
     pub correction: Isometry3<f64>,
     /// Rotation angle of `correction`, degrees.
     pub rotation_correction_deg: f64,
-    /// Length of the translation of `correction`, metres.
+    /// How far `correction` moves the centre of the overlap (the inliers'
+    /// centroid), metres. Unlike `correction.translation`, this does not
+    /// grow with the distance from the target frame's origin (the camera)
+    /// times the rotation correction.
     pub translation_correction_m: f64,
     /// RMS point-to-plane residual of the inlier pairs at the final
     /// transform, metres.
@@ -159,6 +162,22 @@ pub struct IcpResult {
     /// True when the update fell below the convergence thresholds at the
     /// final gate before `max_iterations`.
     pub converged: bool,
+}
+
+impl std::fmt::Display for IcpResult {
+    /// One line for a person: millimetres, micrometres and degrees.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "correction {:.4} deg / {:.4} mm, overlap RMSE {:.2} um, fitness {:.3}, {} iterations ({})",
+            self.rotation_correction_deg,
+            self.translation_correction_m * 1e3,
+            self.overlap_rmse_m * 1e6,
+            self.fitness,
+            self.iterations,
+            if self.converged { "converged" } else { "not converged" }
+        )
+    }
 }
 
 /// A target cloud prepared for registration: the kd-tree is built once and
@@ -272,19 +291,23 @@ impl<'a> IcpTarget<'a> {
         // Statistics at the transform we return, with the final gate.
         let pairs = self.pairs(source, &transform, gate, iterations, params)?;
         let sigma = robust_scale(&pairs, params.min_scale_m);
-        let (mut sum_r2, mut inliers) = (0.0, 0usize);
+        let (mut sum_r2, mut inliers, mut centroid) = (0.0, 0usize, Vector3::zeros());
         for p in &pairs {
             if params.robust.weight(p.r, sigma) > 0.0 {
                 sum_r2 += p.r * p.r;
                 inliers += 1;
+                centroid += p.q;
             }
         }
+        let centroid = Point3::from(centroid / inliers.max(1) as f64);
         let correction = transform * initial.inverse();
+        // The overlap centre before the correction was applied.
+        let before = correction.inverse_transform_point(&centroid);
         Ok(IcpResult {
             transform,
             correction,
             rotation_correction_deg: correction.rotation.angle().to_degrees(),
-            translation_correction_m: correction.translation.vector.norm(),
+            translation_correction_m: (centroid - before).norm(),
             overlap_rmse_m: (sum_r2 / inliers.max(1) as f64).sqrt(),
             fitness: inliers as f64 / source.len() as f64,
             inliers,
@@ -490,7 +513,18 @@ mod tests {
             result.converged,
             elapsed
         );
+        println!("{result}");
         assert!(result.converged);
+        // The start error was 2 deg and 5 mm at the scene centre, which is
+        // near the overlap centre (x = 0).
+        assert!(
+            (result.translation_correction_m - 0.005).abs() < 5e-4,
+            "{result}"
+        );
+        assert!(
+            result.to_string().starts_with("correction 1.99"),
+            "{result}"
+        );
         assert!(rot < 0.01, "rotation error {rot} deg");
         assert!(trans < 10e-6, "translation error {trans} m");
         assert!(worst_m < 10e-6, "worst point error {worst_m} m");

@@ -418,6 +418,37 @@ mod tests {
         assert_eq!(morton_order(&pts), vec![1, 2, 3, 0]);
     }
 
+    proptest::proptest! {
+        /// Z-order is a permutation, and sorted by the interleaved key
+        /// computed the slow way (bit by bit).
+        #[test]
+        fn morton_order_sorts_by_the_interleaved_key(
+            coords in proptest::collection::vec((0u32..1024, 0u32..1024, 0u32..1024), 1..100)
+        ) {
+            let pts: Vec<Vector3<f64>> = coords
+                .iter()
+                .map(|&(x, y, z)| Vector3::new(x as f64, y as f64, z as f64))
+                .collect();
+            let order = morton_order(&pts);
+            let mut seen = order.clone();
+            seen.sort_unstable();
+            proptest::prop_assert_eq!(seen, (0..pts.len()).collect::<Vec<_>>());
+            let lo = pts.iter().fold(Vector3::repeat(f64::MAX), |lo, p| lo.inf(p));
+            let hi = pts.iter().fold(Vector3::repeat(f64::MIN), |hi, p| hi.sup(p));
+            let extent = (hi - lo).max().max(f64::MIN_POSITIVE);
+            let slow_key = |p: &Vector3<f64>| {
+                let c = |v: f64, l: f64| (((v - l) / extent) * 2_097_151.0) as u64;
+                let (x, y, z) = (c(p.x, lo.x), c(p.y, lo.y), c(p.z, lo.z));
+                (0..21).fold(0u64, |k, b| {
+                    k | ((x >> b) & 1) << (3 * b) | ((y >> b) & 1) << (3 * b + 1) | ((z >> b) & 1) << (3 * b + 2)
+                })
+            };
+            for w in order.windows(2) {
+                proptest::prop_assert!(slow_key(&pts[w[0]]) <= slow_key(&pts[w[1]]));
+            }
+        }
+    }
+
     #[test]
     fn transformed_moves_points_and_rotates_normals() {
         let mut cloud = PointCloud::from_points(vec![Vector3::new(1.0, 0.0, 0.0)]);

@@ -71,6 +71,17 @@ mod tests {
         assert_eq!(RobustKernel::None.weight(1e9, 1.0), 1.0);
     }
 
+    proptest::proptest! {
+        /// The selection-based median equals the sorted reference.
+        #[test]
+        fn mad_scale_matches_a_sorted_median(abs in proptest::collection::vec(0.0f64..1.0, 1..200)) {
+            let mut sorted = abs.clone();
+            sorted.sort_by(f64::total_cmp);
+            let reference = (1.4826 * sorted[sorted.len() / 2]).max(1e-9);
+            proptest::prop_assert_eq!(mad_scale(abs, 1e-9), reference);
+        }
+    }
+
     #[test]
     fn mad_scale_of_a_gaussian_is_its_sigma() {
         // |N(0, 1)| quantiles at (i + 0.5) / n: median exactly 0.6745.

@@ -164,7 +164,7 @@ impl Heterodyne {
         let tau = std::f32::consts::TAU;
         // Top: lift the wrapped phase into [floor, floor + 2 pi).
         let top = chain[k - 1];
-        let mut absolute = top + tau * ((self.top_floor_rad - top) / tau).ceil();
+        let mut absolute = top + tau * super::ceil_fast((self.top_floor_rad - top) / tau);
         for l in (0..k - 1).rev() {
             let estimate = absolute * self.ratios[l];
             let order = fringe_order(estimate, chain[l], self.max_residual_rad)?;

@@ -135,15 +135,46 @@ pub(crate) fn same_size<T>(maps: &[&Raster<T>]) -> Result<(usize, usize), Unwrap
 /// exceeds `max_residual_rad` (the estimate is too far from any order to trust).
 #[inline]
 pub fn fringe_order(estimate_rad: f32, wrapped_rad: f32, max_residual_rad: f32) -> Option<f32> {
-    let turns = (estimate_rad - wrapped_rad) / std::f32::consts::TAU;
-    let k = turns.round();
+    let turns = (estimate_rad - wrapped_rad) * (1.0 / std::f32::consts::TAU);
+    let k = round_fast(turns);
     let residual = (turns - k) * std::f32::consts::TAU;
     (residual.abs() <= max_residual_rad).then_some(k)
+}
+
+/// Round half away from zero through an integer conversion. `f32::round`/`floor` are libm
+/// calls on baseline x86-64 (no SSE4.1), and these run for every pixel; fringe orders
+/// are far inside the i32 range (larger inputs saturate, NaN gives 0).
+#[inline]
+pub fn round_fast(x: f32) -> f32 {
+    (x + 0.5f32.copysign(x)) as i32 as f32
+}
+
+/// `ceil` through an integer conversion (see [`round_fast`]).
+#[inline]
+pub fn ceil_fast(x: f32) -> f32 {
+    let t = x as i32 as f32;
+    if t < x {
+        t + 1.0
+    } else {
+        t
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fast_rounding_matches_std() {
+        for i in -4000..4000 {
+            let x = i as f32 * 0.173 + 0.0005;
+            assert_eq!(round_fast(x), x.round(), "{x}");
+            assert_eq!(ceil_fast(x), x.ceil(), "{x}");
+        }
+        assert_eq!(round_fast(2.5), 3.0);
+        assert_eq!(round_fast(-2.5), -3.0);
+        assert_eq!(ceil_fast(-0.5), 0.0);
+    }
 
     #[test]
     fn fringe_order_rounds_and_refuses() {

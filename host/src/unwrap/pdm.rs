@@ -103,6 +103,16 @@ impl Pdm {
         self.separation_cycles
     }
 
+    /// Largest wrapped-phase noise (radians, same on every period) at which a wrong
+    /// order stays `order_sigmas` standard deviations away: half the separation, as a
+    /// distance over all periods, over `order_sigmas`. Pixels noisier than this (low
+    /// modulation) must be masked by the caller: like heterodyne's, a miscount can pass
+    /// the consistency check.
+    pub fn max_phase_sigma_rad(&self, order_sigmas: f64) -> f64 {
+        let n = self.periods_px.len() as f64;
+        std::f64::consts::TAU * self.separation_cycles * n.sqrt() / 2.0 / order_sigmas
+    }
+
     /// Searches all orders of the finest period for one pixel's wrapped phases.
     pub fn search(&self, wrapped: &[f32]) -> PdmCandidate {
         let tau = std::f64::consts::TAU;

@@ -14,13 +14,15 @@
 //! runs the same stages as separate passes and times them, for the bench's breakdown;
 //! both give identical results (tested).
 
+mod cloud;
+
 use std::time::Instant;
 
 use rayon::prelude::*;
 
 use crate::calibration::{CameraModel, Head, ProjectorModel};
 use crate::phase::{PhaseError, PhaseShift};
-use crate::point_cloud::{grid_normal, PointCloud};
+use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::triangulation::{ProjectorAxis, Triangulator};
 use crate::unwrap::heterodyne::{Heterodyne, MAX_PERIODS};
@@ -174,6 +176,13 @@ pub struct StageTimes {
     pub cloud_s: f64,
 }
 
+/// One decoded row of one direction: `phase[p * width + x]` per period p.
+struct RowPhases {
+    phase: Vec<f32>,
+    modulation: Vec<f32>,
+    background: Vec<f32>,
+}
+
 /// The pipeline for one head, set up once.
 #[derive(Clone, Debug)]
 pub struct Reconstructor {
@@ -184,6 +193,8 @@ pub struct Reconstructor {
     triangulator: Triangulator,
     /// Modulation below which the order noise is too large (see `order_sigmas`).
     min_reliable_modulation: f32,
+    /// `noise_sigma * sqrt(2 / N)`: the CRB phase noise is this over B.
+    noise_times_crb: f32,
 }
 
 impl Reconstructor {
@@ -222,6 +233,7 @@ impl Reconstructor {
             heterodyne_v,
             triangulator: Triangulator::new(camera, projector),
             min_reliable_modulation,
+            noise_times_crb: sigma_phi_times_b as f32,
         })
     }
 
@@ -282,29 +294,49 @@ impl Reconstructor {
         Ok(size)
     }
 
-    /// Decodes one direction at pixel `i`: (absolute phase of the finest period or
-    /// status, min modulation, background of the finest period, modulation of the finest).
-    #[inline]
-    fn decode_direction(
-        &self,
-        rows: &[&[f32]],
-        heterodyne: &Heterodyne,
-        x: usize,
-    ) -> (Result<f32, PixelStatus>, f32, f32, f32) {
+    /// Decodes one direction of one row: per period, wrapped phase and modulation (row
+    /// loops, vectorised), background of the finest period.
+    fn decode_rows(&self, rows: &[&[f32]], width: usize) -> RowPhases {
         let n = self.config.steps;
+        let k = self.config.periods_px.len();
+        let mut out = RowPhases {
+            phase: vec![0.0; k * width],
+            modulation: vec![0.0; k * width],
+            background: vec![0.0; width],
+        };
+        let mut scratch = vec![0.0f32; width];
+        for p in 0..k {
+            let bg = if p == 0 {
+                &mut out.background
+            } else {
+                &mut scratch
+            };
+            self.shift.decode_row(
+                &rows[p * n..(p + 1) * n],
+                &mut out.phase[p * width..(p + 1) * width],
+                &mut out.modulation[p * width..(p + 1) * width],
+                bg,
+            );
+        }
+        out
+    }
+
+    /// Unwraps one pixel of a decoded row: (absolute phase or status, min modulation,
+    /// modulation of the finest period).
+    #[inline]
+    fn unwrap_at(
+        &self,
+        row: &RowPhases,
+        heterodyne: &Heterodyne,
+        width: usize,
+        x: usize,
+    ) -> (Result<f32, PixelStatus>, f32, f32) {
         let k = self.config.periods_px.len();
         let mut wrapped = [0.0f32; MAX_PERIODS];
         let mut min_b = f32::INFINITY;
-        let (mut a0, mut b0) = (0.0, 0.0);
-        for p in 0..k {
-            let (phi, b, a) = self
-                .shift
-                .decode(rows[p * n..(p + 1) * n].iter().map(|r| r[x]));
-            wrapped[p] = phi;
-            min_b = min_b.min(b);
-            if p == 0 {
-                (a0, b0) = (a, b);
-            }
+        for (p, w) in wrapped.iter_mut().enumerate().take(k) {
+            *w = row.phase[p * width + x];
+            min_b = min_b.min(row.modulation[p * width + x]);
         }
         // Written so that a NaN modulation (corrupt samples) is masked too.
         let usable = min_b >= self.config.min_modulation;
@@ -317,7 +349,7 @@ impl Reconstructor {
                 .unwrap_pixel(&wrapped[..k])
                 .ok_or(PixelStatus::Unreliable)
         };
-        (phase, min_b, a0, b0)
+        (phase, min_b, row.modulation[x])
     }
 
     /// Triangulates pixel `i` from absolute phases; fills `out`.
@@ -356,7 +388,9 @@ impl Reconstructor {
             return;
         };
         // CRB phase noise of the finest period -> projector pixels -> metres along the ray.
-        let sigma_phi = self.config.noise_sigma * (2.0 / self.config.steps as f32).sqrt() / b0;
+        // With both directions this is the column-only figure: an upper bound, since the
+        // two-ray solution also uses the row.
+        let sigma_phi = self.noise_times_crb / b0;
         let sigma_px = sigma_phi * p0 / tau;
         out.sigma_m = self.triangulator.range_per_px(i, ProjectorAxis::Column, u) * sigma_px;
         out.point_m = [t.point_m.x, t.point_m.y, t.point_m.z];
@@ -376,17 +410,20 @@ impl Reconstructor {
             .par_chunks_mut(width)
             .enumerate()
             .for_each(|(y, row)| {
-                // This row of every frame, sliced once (no per-sample index arithmetic).
+                // This row of every frame, sliced once, decoded with vectorised row loops.
                 let span = y * width..(y + 1) * width;
                 let rows_u: Vec<&[f32]> = frames_u.iter().map(|f| &f.data[span.clone()]).collect();
-                let rows_v: Option<Vec<&[f32]>> =
-                    frames_v.map(|fv| fv.iter().map(|f| &f.data[span.clone()]).collect());
+                let dec_u = self.decode_rows(&rows_u, width);
+                let dec_v = frames_v.map(|fv| {
+                    let rows: Vec<&[f32]> = fv.iter().map(|f| &f.data[span.clone()]).collect();
+                    self.decode_rows(&rows, width)
+                });
                 for (x, out) in row.iter_mut().enumerate() {
                     let i = y * width + x;
-                    let (pu, mut b, a0, b0) = self.decode_direction(&rows_u, &self.heterodyne_u, x);
-                    out.background = a0;
-                    let pv = rows_v.as_ref().map(|rv| {
-                        let (pv, bv, _, _) = self.decode_direction(rv, &self.heterodyne_v, x);
+                    let (pu, mut b, b0) = self.unwrap_at(&dec_u, &self.heterodyne_u, width, x);
+                    out.background = dec_u.background[x];
+                    let pv = dec_v.as_ref().map(|dv| {
+                        let (pv, bv, _) = self.unwrap_at(dv, &self.heterodyne_v, width, x);
                         b = b.min(bv);
                         pv
                     });
@@ -492,67 +529,14 @@ impl Reconstructor {
         Ok((Reconstruction { pixels, cloud }, times))
     }
 
-    /// Compacts valid pixels into a cloud (row-major order): rows are counted, then
-    /// filled in parallel into exactly sized arrays (normals straight from the grid).
+    /// Compacts valid pixels into a cloud (see [`cloud::compact`]).
     fn cloud(&self, pixels: &Raster<PixelResult>) -> PointCloud {
-        let (w, h) = pixels.size();
-        let valid = |p: &PixelResult| p.status == PixelStatus::Valid;
-        let counts: Vec<usize> = pixels
-            .data
-            .par_chunks(w.max(1))
-            .map(|row| row.iter().filter(|p| valid(p)).count())
-            .collect();
-        let total: usize = counts.iter().sum();
-        let mut points = vec![[0.0f32; 3]; total];
-        let mut normals = vec![[0.0f32; 3]; if self.config.normals { total } else { 0 }];
-        let mut colours = vec![[0u8; 3]; total];
-        let mut quality = vec![0.0f32; total];
-        // Split the outputs into one slice per row.
-        let mut parts = Vec::with_capacity(h);
-        let (mut p, mut n, mut c, mut q) = (
-            points.as_mut_slice(),
-            normals.as_mut_slice(),
-            colours.as_mut_slice(),
-            quality.as_mut_slice(),
-        );
-        for (y, &count) in counts.iter().enumerate() {
-            let (p0, p1) = p.split_at_mut(count);
-            let (n0, n1) = n.split_at_mut(if self.config.normals { count } else { 0 });
-            let (c0, c1) = c.split_at_mut(count);
-            let (q0, q1) = q.split_at_mut(count);
-            parts.push((y, p0, n0, c0, q0));
-            (p, n, c, q) = (p1, n1, c1, q1);
-        }
-        let centre = self.triangulator.camera().centre_m();
-        let view = [centre.x as f32, centre.y as f32, centre.z as f32];
-        let get = |x: usize, y: usize| pixels.data[y * w + x].point_m;
-        parts.into_par_iter().for_each(|(y, p, n, c, q)| {
-            let row = &pixels.data[y * w..(y + 1) * w];
-            let mut k = 0;
-            for (x, px) in row.iter().enumerate() {
-                if !valid(px) {
-                    continue;
-                }
-                p[k] = px.point_m;
-                if !n.is_empty() {
-                    let normal = grid_normal(&get, w, h, x, y, view);
-                    n[k] = if normal[0].is_finite() {
-                        normal
-                    } else {
-                        [0.0; 3]
-                    };
-                }
-                c[k] = [(px.background.clamp(0.0, 1.0) * 255.0).round() as u8; 3];
-                q[k] = px.sigma_m;
-                k += 1;
-            }
-        });
-        PointCloud {
-            points_m: points,
-            normals: self.config.normals.then_some(normals),
-            colours: Some(colours),
-            quality_m: Some(quality),
-        }
+        let c = self.triangulator.camera().centre_m();
+        cloud::compact(
+            pixels,
+            self.config.normals,
+            [c.x as f32, c.y as f32, c.z as f32],
+        )
     }
 }
 

@@ -1,0 +1,190 @@
+//! `slscan patterns` and `slscan reconstruct` end to end on small formula-based renders
+//! (`slscan::synth`, not twin renders), and the errors bad inputs must give.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use slscan::calibration::{write_rig, Head, PinholeModel, RigCalibration};
+use slscan::io::images::save_gray_png;
+use slscan::raster::Raster;
+use slscan::synth::{self, Lighting};
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("slscan-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Renders 12 frames (3 periods x 4 steps) as 16-bit PNGs and writes the matching rig.
+fn capture(dir: &Path) -> PathBuf {
+    let (camera, projector) = synth::stereo_rig(
+        PinholeModel::ideal(64, 48, 160.0),
+        PinholeModel::ideal(228, 285, 450.0),
+        0.15,
+        0.5,
+    );
+    let truth = synth::trace(&synth::two_spheres(0.5, 0.6), &camera, &projector);
+    let light = Lighting {
+        ambient: 0.1,
+        gain: 0.7,
+        noise_sigma: 0.003,
+    };
+    let frames = synth::render_fringe_set(&truth, &[9.0, 10.0, 11.0], 4, true, &light, 5);
+    let images = dir.join("images");
+    std::fs::create_dir_all(&images).unwrap();
+    for (i, f) in frames.iter().enumerate() {
+        save_gray_png(&images.join(format!("frame_{i:02}.png")), f, true).unwrap();
+    }
+    let rig = RigCalibration::single(Head {
+        name: "A".into(),
+        camera,
+        projector,
+        view_errors: vec![],
+    });
+    write_rig(&dir.join("rig.json"), &rig).unwrap();
+    images
+}
+
+fn reconstruct(dir: &Path, images: &Path, rig: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_slscan"))
+        .args([
+            "reconstruct",
+            "--periods",
+            "9,10,11",
+            "--noise-sigma",
+            "0.003",
+        ])
+        .arg("--images")
+        .arg(images)
+        .arg("--rig")
+        .arg(rig)
+        .arg("--out")
+        .arg(dir.join("out.ply"))
+        .arg("--pictures")
+        .arg(dir.join("pictures"))
+        .output()
+        .unwrap()
+}
+
+fn fails_with(out: &std::process::Output, needle: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "should fail");
+    assert!(stderr.contains(needle), "stderr lacks {needle:?}: {stderr}");
+}
+
+#[test]
+fn reconstruct_writes_a_cloud_and_pictures() {
+    let dir = tmp("ok");
+    let images = capture(&dir);
+    let out = reconstruct(&dir, &images, &dir.join("rig.json"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ply = std::fs::read(dir.join("out.ply")).unwrap();
+    assert!(ply.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+    for f in ["depth.png", "phase.png", "modulation.png", "depth.npy"] {
+        assert!(dir.join("pictures").join(f).exists(), "{f}");
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("points ->"), "{stdout}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_captures_give_clear_errors_and_no_output() {
+    let dir = tmp("bad");
+    let images = capture(&dir);
+    let rig = dir.join("rig.json");
+    let frame = images.join("frame_05.png");
+    let original = std::fs::read(&frame).unwrap();
+
+    std::fs::remove_file(&frame).unwrap();
+    fails_with(
+        &reconstruct(&dir, &images, &rig),
+        "expected 12 frames, found 11",
+    );
+
+    let grey = Raster::from_fn(64, 48, |x, _| 0.2 + x as f32 / 200.0);
+    save_gray_png(&frame, &grey, false).unwrap();
+    fails_with(
+        &reconstruct(&dir, &images, &rig),
+        "is 8-bit but the set's first frame is 16-bit",
+    );
+
+    save_gray_png(
+        &frame,
+        &Raster::from_fn(32, 48, |x, _| x as f32 / 64.0),
+        true,
+    )
+    .unwrap();
+    fails_with(
+        &reconstruct(&dir, &images, &rig),
+        "(32, 48) but the set's first frame is (64, 48)",
+    );
+
+    save_gray_png(
+        &frame,
+        &Raster::from_fn(64, 48, |x, _| if x < 32 { 1.0 } else { 0.3 }),
+        true,
+    )
+    .unwrap();
+    fails_with(&reconstruct(&dir, &images, &rig), "saturated");
+
+    save_gray_png(&frame, &Raster::filled(64, 48, 0.0), true).unwrap();
+    fails_with(&reconstruct(&dir, &images, &rig), "no signal");
+
+    std::fs::write(&frame, &original).unwrap();
+    let text = std::fs::read_to_string(&rig).unwrap();
+    let bad_rig = dir.join("bad_rig.json");
+    std::fs::write(
+        &bad_rig,
+        text.replacen("\"fx\": 160.0", "\"fx\": -160.0", 1),
+    )
+    .unwrap();
+    fails_with(
+        &reconstruct(&dir, &images, &bad_rig),
+        "focal lengths must be positive",
+    );
+    std::fs::write(&bad_rig, text.replacen("\"cy\": 23.5,", "", 1)).unwrap();
+    fails_with(&reconstruct(&dir, &images, &bad_rig), "missing field `cy`");
+
+    assert!(!dir.join("out.ply").exists(), "no output after failures");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn patterns_writes_each_family() {
+    let dir = tmp("patterns");
+    let run = |args: &[&str], sub: &str| {
+        let out_dir = dir.join(sub);
+        let out = Command::new(env!("CARGO_BIN_EXE_slscan"))
+            .arg("patterns")
+            .args(args)
+            .args(["--width", "64", "--height", "48", "--out"])
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::fs::read_dir(&out_dir).unwrap().count()
+    };
+    assert_eq!(run(&["--periods", "8,9", "--steps", "3"], "fringes"), 6);
+    // 16 blocks of 4 px -> 4 bits, times 4 shifts (0..3).
+    assert_eq!(run(&["--kind", "gray", "--block", "4"], "gray"), 16);
+    assert_eq!(run(&["--kind", "tfc"], "tfc"), 8);
+    // 24 TFC channel frames, error-diffused, packed into one 24-plane image.
+    assert_eq!(
+        run(
+            &["--kind", "tfc", "--bits", "diffusion", "--pack"],
+            "packed"
+        ),
+        1
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
