@@ -12,6 +12,7 @@
 //! - simultaneous: one run, both heads show identical 4-step sequences at
 //!   once; pixels lit by both projectors are aliased (see `mod.rs`).
 
+use hil_sim::twin::TwinRig;
 use protocol::HeadSet;
 
 use super::{plan, twin_truth, Mode, Progress, ScanConfig, ScanError};
@@ -197,6 +198,62 @@ fn demultiplexed_frames(
         }
     }
     Ok(out)
+}
+
+/// Simultaneous mode with identical sequences: pixels lit by both
+/// projectors see aliased fringes. With no de-aliaser yet they are masked
+/// out (frames zeroed there, so the reconstruction masks them) using the
+/// twin's TRUE overlap mask, with a loud PLACEHOLDER warning.
+pub fn mask_aliased_overlap(
+    captured: &mut Captured,
+    twin: &TwinRig,
+    warnings: &mut Vec<String>,
+) -> Result<(), ScanError> {
+    for (h, frames) in captured.frames.iter_mut().enumerate() {
+        let renderer = twin.renderer(h)?;
+        let g = renderer.geometry();
+        // Widened by about 1 % of the image width (3 px at 320): defocus
+        // and the other projector's light edge alias the pixels next to
+        // the true overlap too.
+        let radius = (g.width as usize).div_ceil(100);
+        let overlap = &dilate(&g.overlap, g.width as usize, g.height as usize, radius);
+        let masked = overlap.iter().filter(|&&o| o).count();
+        let warning = format!(
+            "PLACEHOLDER: simultaneous mode: camera {} has {masked} pixels lit by both projectors \
+             (aliased fringes) or within {radius} px of them; they are MASKED OUT using the twin's truth overlap mask, since the \
+             learned de-aliaser (seed 000) does not exist yet",
+            twin_truth::HEAD_NAMES[h]
+        );
+        tracing::warn!("{warning}");
+        warnings.push(warning);
+        for f in frames.iter_mut() {
+            for (v, &o) in f.data.iter_mut().zip(overlap) {
+                if o {
+                    // Zero modulation: the reconstruction masks the pixel.
+                    *v = 0.0;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `mask` grown by `radius` pixels (square neighbourhood).
+fn dilate(mask: &[bool], width: usize, height: usize, radius: usize) -> Vec<bool> {
+    let mut out = vec![false; mask.len()];
+    for y in 0..height {
+        for x in 0..width {
+            if !mask[y * width + x] {
+                continue;
+            }
+            for yy in y.saturating_sub(radius)..(y + radius + 1).min(height) {
+                for xx in x.saturating_sub(radius)..(x + radius + 1).min(width) {
+                    out[yy * width + xx] = true;
+                }
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]
