@@ -24,6 +24,8 @@ pub mod phase;
 pub mod point_cloud;
 pub mod raster;
 pub mod reconstruct;
+pub mod rig;
+pub mod scan;
 pub mod synth;
 pub mod triangulation;
 pub mod unwrap;

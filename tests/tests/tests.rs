@@ -1,6 +1,7 @@
 //! Cross-crate integration tests, built as one binary (as in ripgrep/tests).
 //! Each module says what it covers.
 
+mod dual_head;
 mod faults;
 mod firmware_parity;
 mod sync_chain;

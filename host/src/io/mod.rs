@@ -6,6 +6,7 @@
 pub mod images;
 pub mod npy;
 pub mod ply;
+pub mod report;
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

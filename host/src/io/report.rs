@@ -1,0 +1,181 @@
+//! `report.json` of a scan: what was measured, in units a person reads
+//! (micrometres, milliseconds, degrees), written atomically.
+
+use std::path::Path;
+
+use serde::Serialize;
+
+/// One head's figures.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct HeadReport {
+    /// "A" or "B".
+    pub name: String,
+    /// Valid points.
+    pub points: usize,
+    /// RMS distance of each valid pixel's point to its true point, micrometres.
+    pub rmse_um: f64,
+    /// Median of that distance, micrometres.
+    pub median_error_um: f64,
+    /// RMS of the predicted per-point sigma (phase-noise Cramer-Rao bound
+    /// in metres along the ray), micrometres: the limit `rmse_um` meets.
+    pub predicted_rms_um: f64,
+    /// Valid pixels off by more than 1 mm (counted in the RMSE).
+    pub outliers_over_1mm: usize,
+    /// Point-to-plane RMSE against the true surface, micrometres.
+    pub plane_rmse_um: f64,
+    /// Fraction of the rig's measurable object surface this head covers.
+    pub coverage: f64,
+    /// Fraction of this camera's object pixels lit by its projector that were reconstructed.
+    pub own_pixel_coverage: f64,
+}
+
+/// The ICP refinement of the calibrated head-to-head pose.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct IcpReport {
+    /// Rotation ICP added to the calibrated pose, degrees.
+    pub rotation_deg: f64,
+    /// Translation ICP added, micrometres.
+    pub translation_um: f64,
+    /// RMS point-to-plane residual of the overlap, micrometres.
+    pub overlap_rmse_um: f64,
+    /// Fraction of B's points with an inlier correspondence.
+    pub fitness: f64,
+    /// Iterations.
+    pub iterations: usize,
+    /// Converged before the iteration limit.
+    pub converged: bool,
+}
+
+/// The fused cloud's figures.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct FusedReport {
+    /// Points.
+    pub points: usize,
+    /// Point-to-plane RMSE against the true surface, micrometres.
+    pub rmse_um: f64,
+    /// Fraction of the measurable object surface covered.
+    pub coverage: f64,
+    /// Registration (null when none ran: heads with no shared surface).
+    pub icp: Option<IcpReport>,
+    /// B->A pose used (ICP-refined, or calibrated) against the twin's
+    /// true pose: rotation, degrees.
+    pub pose_error_vs_truth_deg: f64,
+    /// The same: translation, micrometres.
+    pub pose_error_vs_truth_um: f64,
+}
+
+/// Everything `report.json` holds.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ScanReport {
+    /// Twin scene.
+    pub scene: String,
+    /// Capture mode.
+    pub mode: String,
+    /// Camera size (width, height), pixels.
+    pub camera_px: (u32, u32),
+    /// Projector size, pixels.
+    pub projector_px: (u32, u32),
+    /// Fringe periods, projector pixels.
+    pub periods_px: Vec<f64>,
+    /// Phase steps.
+    pub steps: usize,
+    /// Where the calibration came from (the twin's truth in simulation).
+    pub calibration: String,
+    /// How truth figures are defined.
+    pub truth_note: String,
+    /// Samples of the measurable object surface (coverage denominator).
+    pub surface_samples: usize,
+    /// Heads A and B.
+    pub heads: Vec<HeadReport>,
+    /// The fused cloud.
+    pub fused: FusedReport,
+    /// Loud caveats of this run (e.g. aliased pixels masked out).
+    pub warnings: Vec<String>,
+    /// Wall-clock milliseconds per stage.
+    pub timings_ms: std::collections::BTreeMap<String, f64>,
+}
+
+/// What can go wrong writing the report.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// Serialisation failed (a non-finite number is written as null, so this is rare).
+    #[error("report to JSON: {0}")]
+    Json(#[from] serde_json::Error),
+    /// The file could not be written.
+    #[error("writing {path}: {source}")]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+}
+
+/// Writes `report` as pretty JSON (temporary file, then rename).
+pub fn write_report(path: &Path, report: &ScanReport) -> Result<(), ReportError> {
+    let text = serde_json::to_string_pretty(report)?;
+    super::write_atomically(path, |w| w.write_all(text.as_bytes())).map_err(|source| {
+        ReportError::Io {
+            path: path.to_owned(),
+            source,
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nan_figures_become_null_and_the_file_appears_whole() {
+        let dir = std::env::temp_dir().join(format!("slscan-report-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let head = HeadReport {
+            name: "A".into(),
+            points: 0,
+            rmse_um: f64::NAN,
+            median_error_um: f64::NAN,
+            predicted_rms_um: f64::NAN,
+            outliers_over_1mm: 0,
+            plane_rmse_um: 1.0,
+            coverage: 0.0,
+            own_pixel_coverage: 0.0,
+        };
+        let report = ScanReport {
+            scene: "x".into(),
+            mode: "sequential".into(),
+            camera_px: (4, 3),
+            projector_px: (8, 6),
+            periods_px: vec![1.0],
+            steps: 4,
+            calibration: "truth".into(),
+            truth_note: String::new(),
+            surface_samples: 0,
+            heads: vec![head],
+            fused: FusedReport {
+                points: 0,
+                rmse_um: 0.0,
+                coverage: 0.0,
+                icp: Some(IcpReport {
+                    rotation_deg: 0.0,
+                    translation_um: 0.0,
+                    overlap_rmse_um: 0.0,
+                    fitness: 0.0,
+                    iterations: 0,
+                    converged: true,
+                }),
+                pose_error_vs_truth_deg: 0.0,
+                pose_error_vs_truth_um: 0.0,
+            },
+            warnings: Vec::new(),
+            timings_ms: [("setup".to_string(), 1.0)].into(),
+        };
+        let path = dir.join("report.json");
+        write_report(&path, &report).unwrap();
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert!(v["heads"][0]["rmse_um"].is_null());
+        assert_eq!(v["heads"][0]["plane_rmse_um"], 1.0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,148 @@
+//! The rig at the host's edge: the sync board, the projectors' pattern
+//! sequences and the cameras' frames, behind three small traits, so that a
+//! scan pipeline runs the same on hardware and on the simulator.
+//!
+//! ```text
+//! scan --Projector::load_sequence--> DMD pattern table (one per head)
+//!      --Board::run_plan----------> trigger edges (board clock)
+//!      --Camera::take_frames------> one frame per camera trigger, in order
+//! ```
+//!
+//! - [`sim`]: hil-sim's board on a pseudo-terminal (the host's serial client
+//!   talks to it) with cameras rendered by the digital twin from what the
+//!   simulated DMDs displayed while each simulated shutter was open.
+//! - [`hardware`]: real devices (PLACEHOLDER: no camera or DMD driver yet).
+
+pub mod hardware;
+pub mod sim;
+
+use protocol::ScanPlan;
+
+use crate::board::{BoardError, ScanOutcome};
+use crate::raster::Raster;
+
+/// What can go wrong at the rig's edge.
+#[derive(Debug, thiserror::Error)]
+pub enum RigError {
+    /// The board link failed or the board refused a request.
+    #[error("sync board")]
+    Board(#[from] BoardError),
+    /// The board ran the plan but its own feedback check found deviations
+    /// (late, missing or unexpected edges, patterns outside their exposure).
+    #[error("scan not clean: {state:?}, {on_time}/{expected} feedback edges on time, {unexpected} unexpected, {out_of_window} patterns outside their exposure, {unchecked} unchecked")]
+    NotClean {
+        /// How the scan ended.
+        state: protocol::ScanState,
+        /// Feedback edges expected.
+        expected: u32,
+        /// Feedback edges on time.
+        on_time: u32,
+        /// Edges that matched nothing.
+        unexpected: u32,
+        /// Patterns lit outside their exposure.
+        out_of_window: u32,
+        /// Patterns the board could not check.
+        unchecked: u32,
+    },
+    /// A camera took another number of frames than it was triggered for.
+    #[error("head {head}: camera took {got} frames for {expected} triggers (missed triggers: {missed:?})")]
+    FrameCount {
+        /// Head index (0 = A).
+        head: usize,
+        /// Triggers sent.
+        expected: usize,
+        /// Frames taken.
+        got: usize,
+        /// Trigger indices the camera reported missing.
+        missed: Vec<u64>,
+    },
+    /// The projector showed another number of patterns than the plan triggers.
+    #[error("head {head}: projector showed {got} patterns for {expected} triggers")]
+    PatternCount {
+        /// Head index.
+        head: usize,
+        /// Triggers sent.
+        expected: usize,
+        /// Patterns shown.
+        got: usize,
+    },
+    /// A frame's exposure window (board clock) did not hold exactly the
+    /// patterns the plan puts in it, each shown whole.
+    #[error("head {head} frame {frame}: expected patterns {expected:?} shown whole, the exposure saw (pattern, ns) {seen:?}")]
+    Sequencing {
+        /// Head index.
+        head: usize,
+        /// Frame index.
+        frame: usize,
+        /// Pattern indices the plan puts in this exposure.
+        expected: Vec<u32>,
+        /// (pattern index, ns inside the window) of what was shown.
+        seen: Vec<(u32, u64)>,
+    },
+    /// No such head on this rig.
+    #[error("head {head} does not exist (the rig has {heads})")]
+    NoSuchHead {
+        /// Head asked for.
+        head: usize,
+        /// Heads present.
+        heads: usize,
+    },
+    /// A pattern does not match the projector's DMD size.
+    #[error("head {head}: pattern is {got:?} but the DMD is {expected:?} (width, height)")]
+    PatternSize {
+        /// Head index.
+        head: usize,
+        /// DMD size.
+        expected: (u32, u32),
+        /// Pattern size.
+        got: (usize, usize),
+    },
+    /// The simulator failed (pty, twin rendering).
+    #[error("simulator: {0}")]
+    Sim(String),
+    /// The rig has no implementation for this yet.
+    #[error("PLACEHOLDER: {0}")]
+    Placeholder(&'static str),
+}
+
+/// The sync board: runs a plan to its end.
+pub trait Board {
+    /// Uploads, arms, starts and follows `plan`; fails unless the board's
+    /// own feedback check found the scan clean.
+    fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError>;
+}
+
+/// The DMD projectors: a pattern table per head, advanced by each trigger.
+pub trait Projector {
+    /// DMD size of head `head`'s projector (width, height).
+    fn dmd_size_px(&self, head: usize) -> Result<(u32, u32), RigError>;
+    /// Loads the patterns (values in [0, 1]) the triggers of head `head`
+    /// step through, in trigger order.
+    fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError>;
+}
+
+/// The triggered cameras.
+pub trait Camera {
+    /// Image size of head `head`'s camera (width, height).
+    fn image_size_px(&self, head: usize) -> Result<(u32, u32), RigError>;
+    /// The frames head `head`'s camera took during the last plan, one per
+    /// trigger in trigger order (values in [0, 1]); fails when a trigger
+    /// produced no frame.
+    fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError>;
+}
+
+/// Checks a finished scan's counters: clean, or [`RigError::NotClean`].
+pub fn require_clean(outcome: &ScanOutcome) -> Result<(), RigError> {
+    if outcome.is_clean() {
+        return Ok(());
+    }
+    let r = &outcome.report;
+    Err(RigError::NotClean {
+        state: outcome.state,
+        expected: r.expected,
+        on_time: r.on_time,
+        unexpected: r.unexpected,
+        out_of_window: r.out_of_window,
+        unchecked: r.patterns_unchecked,
+    })
+}

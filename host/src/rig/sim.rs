@@ -1,0 +1,315 @@
+//! The simulated rig: hil-sim's board served on a real pseudo-terminal, the
+//! host's serial [`BoardClient`] talking to it, and cameras rendered by the
+//! digital twin ([`TwinRig`]).
+//!
+//! A camera frame is rendered from the board's executed timeline, not from
+//! the plan: each simulated DMD logs when each pattern was really on its
+//! mirrors (after trigger latency and jitter), each simulated camera when
+//! its shutter was really open, and the twin integrates exactly that light.
+//! A sequencing error therefore shows up in the images.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use hil_sim::board::{spawn_on_pty, SimBoardConfig, SimBoardHandle};
+use hil_sim::devices::{patterns_in_window, Displayed};
+use hil_sim::twin::{Display, Exposure, Pattern, ProjectorTimeline, SensorModel, Shown, TwinRig};
+use protocol::ScanPlan;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use super::{require_clean, Board, Camera, Projector, RigError};
+use crate::board::{BoardClient, BoardError, ClientConfig, ScanOutcome, SerialTransport};
+use crate::raster::Raster;
+
+/// Delay from `Start` to the first cycle, board nanoseconds.
+const START_DELAY_NS: u32 = 1_000_000;
+
+/// How to build a [`SimRig`].
+#[derive(Clone, Debug)]
+pub struct SimRigConfig {
+    /// The simulated board (seed of device jitter, injected faults).
+    pub board: SimBoardConfig,
+    /// Timeouts of the host's client.
+    pub client: ClientConfig,
+    /// Sensor model of every camera.
+    pub sensor: SensorModel,
+    /// Seed of the cameras' noise.
+    pub noise_seed: u64,
+}
+
+/// Board on a pty + twin cameras. Head `h` is the twin's camera `h` and
+/// projector `h`, wired as board head `h` of the plan.
+pub struct SimRig {
+    // Dropped after the client (field order): the board outlives its link.
+    client: BoardClient<SerialTransport>,
+    board: SimBoardHandle,
+    twin: Arc<TwinRig>,
+    sequences: Vec<Vec<Arc<Pattern>>>,
+    sensor: SensorModel,
+    rng: ChaCha8Rng,
+    /// Per head, per camera trigger of the last plan: patterns its exposure holds.
+    slots_per_frame: Vec<Vec<usize>>,
+}
+
+impl SimRig {
+    /// Starts a simulated board on a pty and connects the host's serial
+    /// client to it (handshake done).
+    pub fn start(twin: Arc<TwinRig>, config: SimRigConfig) -> Result<Self, RigError> {
+        let board =
+            spawn_on_pty(config.board).map_err(|e| RigError::Sim(format!("board pty: {e}")))?;
+        let path = board.path().unwrap_or(Path::new("")).to_path_buf();
+        let transport = SerialTransport::open(&path, 115_200).map_err(BoardError::from)?;
+        let (client, info) = BoardClient::connect(transport, config.client)?;
+        tracing::info!(
+            board_id = format_args!("{:#x}", info.board_id),
+            port = %path.display(),
+            "simulated sync board connected"
+        );
+        let heads = twin.rig().cameras.len();
+        Ok(SimRig {
+            client,
+            board,
+            sequences: vec![Vec::new(); twin.rig().projectors.len()],
+            twin,
+            sensor: config.sensor,
+            rng: ChaCha8Rng::seed_from_u64(config.noise_seed),
+            slots_per_frame: vec![Vec::new(); heads],
+        })
+    }
+
+    /// The twin the cameras render.
+    pub fn twin(&self) -> &TwinRig {
+        &self.twin
+    }
+
+    fn check_head(&self, head: usize) -> Result<(), RigError> {
+        let heads = self.twin.rig().cameras.len();
+        if head >= heads || head >= self.twin.rig().projectors.len() {
+            return Err(RigError::NoSuchHead { head, heads });
+        }
+        Ok(())
+    }
+
+    /// What each projector really displayed in the last plan, as twin timelines.
+    fn timelines(&self) -> Vec<ProjectorTimeline> {
+        let board = self.board.board();
+        let sim_heads = board.hardware().heads();
+        (0..self.twin.rig().projectors.len())
+            .map(|p| {
+                let shown = match (sim_heads.get(p), self.sequences.get(p)) {
+                    (Some(head), Some(seq)) if !seq.is_empty() => {
+                        timeline(head.projector.displayed(), seq)
+                    }
+                    _ => Vec::new(),
+                };
+                ProjectorTimeline { shown }
+            })
+            .collect()
+    }
+}
+
+/// The displayed log of one DMD as twin `Shown` items (virtual ns -> s);
+/// the DMD steps through its table once per accepted trigger.
+fn timeline(displayed: &[Displayed], sequence: &[Arc<Pattern>]) -> Vec<Shown> {
+    displayed
+        .iter()
+        .map(|d| Shown {
+            pattern: sequence[d.pattern_index as usize % sequence.len()].clone(),
+            start_s: d.start_ns as f64 * 1e-9,
+            end_s: d.end_ns as f64 * 1e-9,
+            led: [1.0; 3],
+            display: Display::Steady,
+        })
+        .collect()
+}
+
+/// From the board-clock timestamps alone: frame `i` must hold exactly the
+/// next `slots[i]` patterns of the DMD's sequence, each shown whole while
+/// the shutter was open (what the plan asks for).
+fn check_sequencing(
+    head: usize,
+    windows_ns: &[(u64, u64)],
+    displayed: &[Displayed],
+    slots: &[usize],
+) -> Result<(), RigError> {
+    let mut next = 0usize;
+    for (frame, (&(start_ns, end_ns), &count)) in windows_ns.iter().zip(slots).enumerate() {
+        let seen = patterns_in_window(displayed, start_ns, end_ns);
+        let want: Vec<u32> = (next..next + count).map(|i| i as u32).collect();
+        let got: Vec<u32> = seen.iter().map(|s| s.0).collect();
+        let whole = seen.iter().all(|&(i, overlap_ns)| {
+            displayed
+                .get(i as usize)
+                .is_some_and(|d| d.end_ns - d.start_ns == overlap_ns)
+        });
+        if got != want || !whole {
+            return Err(RigError::Sequencing {
+                head,
+                frame,
+                expected: want,
+                seen,
+            });
+        }
+        next += count;
+    }
+    Ok(())
+}
+
+impl Board for SimRig {
+    fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError> {
+        self.slots_per_frame = (0..self.slots_per_frame.len())
+            .map(|h| {
+                let one_cycle: Vec<usize> = plan
+                    .exposures()
+                    .filter(|e| e.entry.heads.contains(h))
+                    .map(|e| e.slots.len())
+                    .collect();
+                one_cycle.repeat(plan.repeat_count as usize)
+            })
+            .collect();
+        let outcome = self.client.run_plan(plan, START_DELAY_NS, |event| {
+            tracing::debug!(?event, "board event");
+        })?;
+        require_clean(&outcome)?;
+        Ok(outcome)
+    }
+}
+
+impl Projector for SimRig {
+    fn dmd_size_px(&self, head: usize) -> Result<(u32, u32), RigError> {
+        self.check_head(head)?;
+        let k = &self.twin.rig().projectors[head].model.intrinsics;
+        Ok((k.width, k.height))
+    }
+
+    fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError> {
+        let expected = self.dmd_size_px(head)?;
+        let mut seq = Vec::with_capacity(patterns.len());
+        for p in patterns {
+            if (p.width, p.height) != (expected.0 as usize, expected.1 as usize) {
+                return Err(RigError::PatternSize {
+                    head,
+                    expected,
+                    got: p.size(),
+                });
+            }
+            seq.push(Arc::new(Pattern {
+                width: expected.0,
+                height: expected.1,
+                values: p.data.clone(),
+            }));
+        }
+        self.sequences[head] = seq;
+        Ok(())
+    }
+}
+
+impl Camera for SimRig {
+    fn image_size_px(&self, head: usize) -> Result<(u32, u32), RigError> {
+        self.check_head(head)?;
+        let k = &self.twin.rig().cameras[head].model.intrinsics;
+        Ok((k.width, k.height))
+    }
+
+    fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
+        self.check_head(head)?;
+        let expected = self.slots_per_frame[head].len();
+        let expected_patterns: usize = self.slots_per_frame[head].iter().sum();
+        let (exposures, missed, displayed) = {
+            let board = self.board.board();
+            let sim = board
+                .hardware()
+                .heads()
+                .get(head)
+                .ok_or(RigError::NoSuchHead {
+                    head,
+                    heads: board.hardware().heads().len(),
+                })?;
+            (
+                sim.camera.exposures().to_vec(),
+                sim.camera.missed().iter().map(|m| m.0).collect::<Vec<_>>(),
+                sim.projector.displayed().to_vec(),
+            )
+        };
+        let done: Vec<_> = exposures
+            .iter()
+            .filter_map(|e| e.end_ns.map(|end| (e.start_ns, end)))
+            .collect();
+        if done.len() != expected || !missed.is_empty() {
+            return Err(RigError::FrameCount {
+                head,
+                expected,
+                got: done.len(),
+                missed,
+            });
+        }
+        if displayed.len() != expected_patterns {
+            return Err(RigError::PatternCount {
+                head,
+                expected: expected_patterns,
+                got: displayed.len(),
+            });
+        }
+        check_sequencing(head, &done, &displayed, &self.slots_per_frame[head])?;
+        let timelines = self.timelines();
+        let (w, h) = self.image_size_px(head)?;
+        let mut frames = Vec::with_capacity(done.len());
+        for (start_ns, end_ns) in done {
+            let window = Exposure {
+                start_s: start_ns as f64 * 1e-9,
+                end_s: end_ns as f64 * 1e-9,
+            };
+            let (image, _saturated) = self
+                .twin
+                .image(head, &timelines, window, &self.sensor, &mut self.rng)
+                .map_err(|e| RigError::Sim(format!("twin camera {head}: {e}")))?;
+            let data = if image.channels == 1 {
+                image.data
+            } else {
+                image
+                    .data
+                    .chunks(image.channels)
+                    .map(|c| c.iter().sum::<f32>() / c.len() as f32)
+                    .collect()
+            };
+            frames.push(Raster {
+                width: w as usize,
+                height: h as usize,
+                data,
+            });
+        }
+        Ok(frames)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shown(pattern_index: u32, start_ns: u64, end_ns: u64) -> Displayed {
+        Displayed {
+            pattern_index,
+            trigger_ns: start_ns,
+            start_ns,
+            end_ns,
+        }
+    }
+
+    #[test]
+    fn each_frame_must_hold_its_own_patterns_whole() {
+        let windows = [(0, 100), (200, 300)];
+        let good = [shown(0, 10, 90), shown(1, 210, 290)];
+        check_sequencing(0, &windows, &good, &[1, 1]).unwrap();
+        // Pattern 1 lights up late and spills past the shutter.
+        let late = [shown(0, 10, 90), shown(1, 250, 330)];
+        let err = check_sequencing(1, &windows, &late, &[1, 1]).unwrap_err();
+        assert!(
+            matches!(err, RigError::Sequencing { head: 1, frame: 1, ref seen, .. } if seen == &[(1, 50)]),
+            "{err}"
+        );
+        // Pattern 0 lingers into the next frame.
+        let lingering = [shown(0, 10, 210), shown(1, 215, 290)];
+        assert!(check_sequencing(0, &windows, &lingering, &[1, 1]).is_err());
+    }
+}

@@ -1,0 +1,81 @@
+//! Fusion of the two head clouds: ICP of B onto A from the calibrated
+//! pose, then a merge by quality; without shared surface (simultaneous mode
+//! with the aliased overlap masked out) the calibrated pose alone, loudly.
+
+use nalgebra::{Isometry3, Vector3};
+
+use super::clouds::to_fusion;
+use super::{Mode, ScanConfig, ScanError};
+use crate::fusion::{
+    self, merge_clouds, DuplicateRule, FuseParams, FusionError, IcpParams, IcpResult, MergeParams,
+};
+use crate::point_cloud::PointCloud;
+
+/// The fused cloud (head A's frame) and the registration, if one ran.
+pub struct Fused {
+    /// The merged cloud.
+    pub cloud: fusion::PointCloud,
+    /// ICP of B onto A.
+    pub icp: Option<IcpResult>,
+}
+
+/// Fuses `b` (head B's frame) into `a` (head A's), starting from the
+/// calibrated `a_from_b`.
+pub fn fuse(
+    a: &PointCloud,
+    b: &PointCloud,
+    a_from_b: &Isometry3<f64>,
+    config: &ScanConfig,
+    warnings: &mut Vec<String>,
+) -> Result<Fused, ScanError> {
+    let params = fuse_params(config);
+    let (a, b) = (to_fusion(a), to_fusion(b));
+    match fusion::fuse_heads(&a, &b, a_from_b, &params) {
+        Ok(f) => {
+            tracing::info!(
+                rotation_deg = f.icp.rotation_correction_deg,
+                translation_um = f.icp.translation_correction_m * 1e6,
+                overlap_rmse_um = f.icp.overlap_rmse_m * 1e6,
+                merged = f.merge.b_merged,
+                "ICP refined the calibrated head-to-head pose"
+            );
+            Ok(Fused {
+                cloud: f.cloud,
+                icp: Some(f.icp),
+            })
+        }
+        Err(FusionError::NoOverlap {
+            correspondences, ..
+        }) if config.mode == Mode::Simultaneous => {
+            let warning = format!(
+                "simultaneous mode: the heads share no unaliased surface ({correspondences} ICP \
+                 correspondences), so the clouds are merged with the calibrated pose, NOT refined by ICP"
+            );
+            tracing::warn!("{warning}");
+            warnings.push(warning);
+            let (cloud, _) = merge_clouds(&a, &b.transformed(a_from_b), &params.merge)?;
+            Ok(Fused { cloud, icp: None })
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// Fusion settings for the scan's sampling: merge radius about one camera
+/// pixel's footprint at 0.5 m.
+pub fn fuse_params(config: &ScanConfig) -> FuseParams {
+    // Footprint of a pixel at 0.5 m for a 42 degree camera of this width.
+    let pitch_m = 0.5 * 2.0 * (21f64.to_radians()).tan() / config.camera_px.0 as f64;
+    FuseParams {
+        normals_k: 12,
+        sensor_a_m: Vector3::zeros(),
+        icp: IcpParams {
+            final_gate_m: (4.0 * pitch_m).min(IcpParams::default().initial_gate_m),
+            ..IcpParams::default()
+        },
+        merge: MergeParams {
+            radius_m: pitch_m,
+            rule: DuplicateRule::WeightedMean,
+            default_sigma_m: 1e-4,
+        },
+    }
+}

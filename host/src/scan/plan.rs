@@ -1,0 +1,149 @@
+//! What a sequential dual-head scan shows and when: the fringe set of each
+//! head and the board plan that triggers it (one exposure per pattern).
+
+use protocol::limits::{CameraModel, ProjectorModel, MAX_EXPOSURES};
+use protocol::plan::examples::{
+    head, CYCLE_LEAD_NS, SLOW_DISPLAY_NS, SLOW_EXPOSURE_NS, SLOW_FRAME_NS, SLOW_SLOT_OFFSET_NS,
+};
+use protocol::{HeadSet, PatternSlot, ScanPlan};
+
+use crate::patterns::{multi_frequency_set, FringeAxis, FringeSpec};
+use crate::raster::Raster;
+
+/// Guard kept between each pattern's light and its exposure's edges.
+const MARGIN_NS: u32 = 1_000;
+
+/// The fringe frames of one head: `periods_px.len() x steps` column fringes,
+/// period-major, 8-bit grey (as a DMD shows them), full contrast.
+pub fn fringe_sequence(dmd_px: (u32, u32), periods_px: &[f64], steps: usize) -> Vec<Raster<f32>> {
+    let spec = FringeSpec::full_contrast(dmd_px.0, dmd_px.1, periods_px[0], steps, FringeAxis::X);
+    let mut frames = multi_frequency_set(&spec, periods_px);
+    for f in &mut frames {
+        f.data
+            .iter_mut()
+            .for_each(|v| *v = (*v * 255.0).round() / 255.0);
+    }
+    frames
+}
+
+/// Column fringes with arbitrary shifts (radians), period-major: for each
+/// period, one frame per shift; 8-bit grey, full contrast.
+pub fn shifted_fringes(
+    dmd_px: (u32, u32),
+    periods_px: &[f64],
+    shifts_rad: &[f64],
+) -> Vec<Raster<f32>> {
+    let (w, h) = (dmd_px.0 as usize, dmd_px.1 as usize);
+    let mut frames = Vec::with_capacity(periods_px.len() * shifts_rad.len());
+    for &period in periods_px {
+        for &shift in shifts_rad {
+            // One row, repeated: column fringes do not change down the DMD.
+            let row: Vec<f32> = (0..w)
+                .map(|u| {
+                    let v = 0.5 + 0.5 * (std::f64::consts::TAU * u as f64 / period + shift).cos();
+                    (v as f32 * 255.0).round() / 255.0
+                })
+                .collect();
+            frames.push(Raster {
+                width: w,
+                height: h,
+                data: row.repeat(h),
+            });
+        }
+    }
+    frames
+}
+
+/// Why a plan cannot be built.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PlanBuildError {
+    /// More patterns than a plan's cycle holds exposures.
+    #[error("{patterns} patterns need {patterns} exposures; a plan holds at most {max}")]
+    TooManyPatterns {
+        /// Patterns asked for.
+        patterns: usize,
+        /// Exposures a plan holds.
+        max: usize,
+    },
+}
+
+/// The two-head rig wiring (DLPC350 projectors, 6 MP mono cameras) with
+/// `patterns` exposures on `heads`, one pattern each, one frame period
+/// apart: the seed 000 reference run of one head when `heads` is one head,
+/// or both heads at once when it is [`HeadSet::BOTH`].
+pub fn one_pattern_per_exposure(
+    heads: HeadSet,
+    patterns: usize,
+) -> Result<ScanPlan, PlanBuildError> {
+    if patterns > MAX_EXPOSURES {
+        return Err(PlanBuildError::TooManyPatterns {
+            patterns,
+            max: MAX_EXPOSURES,
+        });
+    }
+    let wiring = [
+        head(0, ProjectorModel::Dlpc350, CameraModel::Mono6Mp),
+        head(1, ProjectorModel::Dlpc350, CameraModel::Mono6Mp),
+    ];
+    let period_ns = patterns as u32 * SLOW_FRAME_NS;
+    let mut plan = ScanPlan::new(&wiring, 1, period_ns, MARGIN_NS).map_err(|_| {
+        PlanBuildError::TooManyPatterns {
+            patterns,
+            max: MAX_EXPOSURES,
+        }
+    })?;
+    for k in 0..patterns {
+        let slot = PatternSlot {
+            pattern_index: k as u16,
+            offset_ns: SLOW_SLOT_OFFSET_NS,
+            display_ns: SLOW_DISPLAY_NS,
+        };
+        plan.push_exposure(
+            heads,
+            CYCLE_LEAD_NS + k as u32 * SLOW_FRAME_NS,
+            SLOW_EXPOSURE_NS,
+            &[slot],
+        )
+        .map_err(|_| PlanBuildError::TooManyPatterns {
+            patterns,
+            max: MAX_EXPOSURES,
+        })?;
+    }
+    Ok(plan)
+}
+
+/// Seconds each pattern is on the mirrors (sets the sensor's exposure scale).
+pub fn display_s() -> f64 {
+    SLOW_DISPLAY_NS as f64 * 1e-9
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::BoardLimits;
+
+    #[test]
+    fn head_only_plans_validate_on_the_board_limits() {
+        for heads in [HeadSet::A, HeadSet::B, HeadSet::BOTH] {
+            let plan = one_pattern_per_exposure(heads, 16).unwrap();
+            assert_eq!(plan.exposures.len(), 16);
+            plan.clone()
+                .validate(&BoardLimits::STM32G474)
+                .expect("valid");
+        }
+        assert!(one_pattern_per_exposure(HeadSet::A, MAX_EXPOSURES + 1).is_err());
+    }
+
+    #[test]
+    fn fringes_are_period_major_8_bit() {
+        let f = fringe_sequence((64, 4), &[16.0, 20.0], 4);
+        assert_eq!(f.len(), 8);
+        // Step 0 of period 16 at u = 0: cos 0 = 1; step 2 (shift pi): 0.
+        assert_eq!(f[0].data[0], 1.0);
+        assert_eq!(f[2].data[0], 0.0);
+        assert!(f
+            .iter()
+            .flat_map(|r| &r.data)
+            .all(|v| (v * 255.0).fract() == 0.0));
+    }
+}
