@@ -14,6 +14,7 @@ pub mod board;
 pub mod bundle;
 pub mod detect;
 pub mod extrinsics;
+pub mod from_twin;
 pub mod head;
 pub mod homography;
 pub mod lm;
