@@ -8,13 +8,18 @@
 use std::f64::consts::{PI, TAU};
 use std::sync::Arc;
 
+use hil_sim::twin::scenes::CHECKERBOARD;
 use hil_sim::twin::scenes::{built_in, Detail, SPHERE_CENTRE_DISTANCE_M, SPHERE_RADII_M};
 use hil_sim::twin::{
     BitDepth, Exposure, Frame, Fringe, Pattern, ProjectorTimeline, Renderer, SensorModel,
 };
 use nalgebra::Point3;
+use slscan::calibration::board::Target;
 use slscan::calibration::from_twin::{head_from_twin, pose_from_twin};
-use slscan::calibration::Head;
+use slscan::calibration::head::{calibrate_head, HeadOptions};
+use slscan::calibration::rodrigues::rotation_angle_between;
+use slscan::calibration::twin_head::{self, TwinHead};
+use slscan::calibration::{Head, PinholeModel, Pose};
 use slscan::fit::fit_sphere;
 use slscan::phase::{phase_noise_crb, wrap_pi, PhaseShift};
 use slscan::raster::Raster;
@@ -291,5 +296,152 @@ fn calibration_spheres_fit_to_their_true_radii_and_centre_distance() {
     assert!(
         d_err_um.abs() < 200.0,
         "centre distance off by {d_err_um} um"
+    );
+}
+
+/// Rotation angle (degrees) and translation distance (mm) between two poses.
+fn pose_error(a: &Pose, b: &Pose) -> (f64, f64) {
+    (
+        rotation_angle_between(&a.rotation, &b.rotation).to_degrees(),
+        (a.translation_m - b.translation_m).norm() * 1e3,
+    )
+}
+
+fn print_device(what: &str, got: &PinholeModel, truth: &PinholeModel) {
+    let (g, t) = (got.intrinsics, truth.intrinsics);
+    let (gd, td) = (got.distortion, truth.distortion);
+    println!(
+        "{what}: fx {:.2} (true {:.2}) fy {:.2} ({:.2}) cx {:.2} ({:.2}) cy {:.2} ({:.2}) | \
+         k1 {:+.4} ({:+.4}) k2 {:+.4} ({:+.4}) p1 {:+.5} ({:+.5}) p2 {:+.5} ({:+.5})",
+        g.fx,
+        t.fx,
+        g.fy,
+        t.fy,
+        g.cx,
+        t.cx,
+        g.cy,
+        t.cy,
+        gd.k1,
+        td.k1,
+        gd.k2,
+        td.k2,
+        gd.p1,
+        td.p1,
+        gd.p2,
+        td.p2
+    );
+}
+
+#[test]
+fn head_calibration_from_twin_checkerboard_views_recovers_the_true_devices() {
+    let detail = Detail {
+        camera: (640, 480),
+        projector: (1280, 800),
+    };
+    let sim = TwinHead::standard(12, &detail);
+    let captures = sim.render(&SensorModel::mono12(), 5, true).unwrap();
+    let target = Target::Checkerboard(twin_head::board());
+    let cal = calibrate_head(
+        "A",
+        &target,
+        &captures,
+        &sim.projector_spec(),
+        &HeadOptions::default(),
+    )
+    .unwrap();
+    let stage = &cal.camera;
+    println!(
+        "{} of {} views used; reprojection RMS: camera {:.4} px, projector {:.4} px, pair {:.4} px",
+        stage.names.len(),
+        captures.len(),
+        stage.calibration.rms_px,
+        cal.projector.rms_px,
+        cal.pair.rms_px
+    );
+    for (name, why) in &stage.skipped {
+        println!("skipped {name}: {why}");
+    }
+    print_device("camera   ", &cal.head.camera, &sim.truth.camera);
+    print_device("projector", &cal.head.projector, &sim.truth.projector);
+
+    // Detected corners against the twin's true corner pixels.
+    let camera_truth = &sim.rig.cameras[0].model;
+    let (mut sum2, mut n, mut flipped) = (0.0, 0usize, 0usize);
+    let mut worst_view = (0.0f64, 0.0f64);
+    let mut mean_err = [0.0f64; 2];
+    for (name, corners) in stage.names.iter().zip(&stage.corners_px) {
+        let v: usize = name.trim_start_matches("view_").parse().unwrap();
+        let truth: Vec<[f64; 2]> = CHECKERBOARD
+            .corners_px(&sim.world_from_board[v], camera_truth)
+            .into_iter()
+            .map(|c| c.unwrap())
+            .collect();
+        let err2 = |rev: bool| -> f64 {
+            corners
+                .iter()
+                .enumerate()
+                .map(|(i, c)| {
+                    let t = truth[if rev { truth.len() - 1 - i } else { i }];
+                    (c.x - t[0]).powi(2) + (c.y - t[1]).powi(2)
+                })
+                .sum()
+        };
+        let (direct, reversed) = (err2(false), err2(true));
+        let rev = reversed < direct;
+        for (i, c) in corners.iter().enumerate() {
+            let t = truth[if rev { truth.len() - 1 - i } else { i }];
+            mean_err[0] += c.x - t[0];
+            mean_err[1] += c.y - t[1];
+        }
+        flipped += usize::from(rev);
+        sum2 += direct.min(reversed);
+        n += corners.len();
+        // The recovered view pose against the truth numbered the same way.
+        let k = stage.names.iter().position(|m| m == name).unwrap();
+        let want = if rev {
+            sim.flipped_board_pose(v)
+        } else {
+            sim.board_pose(v)
+        };
+        let (deg, mm) = pose_error(&stage.calibration.board_poses[k], &want);
+        worst_view = (worst_view.0.max(deg), worst_view.1.max(mm));
+    }
+    let corner_rms = (sum2 / n as f64).sqrt();
+    println!(
+        "mean corner offset detected - true: ({:+.4}, {:+.4}) px",
+        mean_err[0] / n as f64,
+        mean_err[1] / n as f64
+    );
+    println!(
+        "corner detection vs twin truth: {corner_rms:.4} px RMS over {n} corners \
+         ({flipped} views numbered from the far corner)"
+    );
+    println!(
+        "view poses vs truth: worst rotation {:.4} deg, worst translation {:.3} mm",
+        worst_view.0, worst_view.1
+    );
+    let (deg, mm) = pose_error(&cal.head.projector.pose, &sim.truth.projector.pose);
+    println!("camera->projector pose vs truth: rotation {deg:.4} deg, translation {mm:.3} mm");
+
+    // Sane bounds for 12 views of a board covering about a third of the image, corners
+    // limited to about 0.15 px by the twin's one-ray-per-pixel (aliased) edges: focal
+    // lengths within 1 %, principal points within 1.5 % of f (cy trades against p1),
+    // view translations within 2 % of the 0.5 m range (they trade against f).
+    assert_eq!(stage.names.len(), captures.len(), "every view detected");
+    assert!(corner_rms < 0.25, "corners {corner_rms} px");
+    assert!(stage.calibration.rms_px < 0.3 && cal.projector.rms_px < 0.5);
+    for (got, truth) in [
+        (&cal.head.camera, &sim.truth.camera),
+        (&cal.head.projector, &sim.truth.projector),
+    ] {
+        let (g, t) = (got.intrinsics, truth.intrinsics);
+        assert!((g.fx / t.fx - 1.0).abs() < 0.01 && (g.fy / t.fy - 1.0).abs() < 0.01);
+        assert!((g.cx - t.cx).abs() < 0.015 * t.fx && (g.cy - t.cy).abs() < 0.015 * t.fy);
+        assert!((got.distortion.k1 - truth.distortion.k1).abs() < 0.02);
+    }
+    assert!(worst_view.0 < 1.5 && worst_view.1 < 10.0, "{worst_view:?}");
+    assert!(
+        deg < 0.5 && mm < 3.0,
+        "camera->projector off by {deg} deg, {mm} mm"
     );
 }

@@ -25,6 +25,7 @@ pub mod rig_file;
 pub mod rodrigues;
 pub mod sim_head;
 pub mod synthetic;
+pub mod twin_head;
 pub mod zhang;
 
 pub use pinhole::{CameraModel, Distortion, Intrinsics, PinholeModel, Pose, ProjectorModel, Ray};
