@@ -309,5 +309,83 @@ fn absolute_phase(frames: &[GrayImage], range_px: f64) -> GrayImage {
         .expect("periods span the DMD");
     let refs: Vec<&Raster<f32>> = wrapped.iter().map(|p| &p.phase).collect();
     let abs = unwrapper.unwrap(&refs, Some(&mask)).expect("equal sizes");
-    GrayImage::from_raw(w, h, abs.phase.data).expect("width x height samples")
+    let clean = drop_order_spikes(&abs.phase.data, w as usize, h as usize);
+    GrayImage::from_raw(w, h, clean).expect("width x height samples")
+}
+
+/// NaN where a pixel's absolute phase is more than pi from the median of its valid
+/// 3x3 neighbours: a fringe-order error that slipped past the heterodyne check (dark
+/// squares have little modulation) would otherwise bend a corner's local homography.
+fn drop_order_spikes(phase: &[f32], w: usize, h: usize) -> Vec<f32> {
+    let mut out = phase.to_vec();
+    let mut near = Vec::with_capacity(9);
+    for y in 0..h {
+        for x in 0..w {
+            let p = phase[y * w + x];
+            if !p.is_finite() {
+                continue;
+            }
+            near.clear();
+            for ny in y.saturating_sub(1)..(y + 2).min(h) {
+                for nx in x.saturating_sub(1)..(x + 2).min(w) {
+                    let q = phase[ny * w + nx];
+                    if (nx, ny) != (x, y) && q.is_finite() {
+                        near.push(q);
+                    }
+                }
+            }
+            if near.len() < 3 {
+                out[y * w + x] = f32::NAN;
+                continue;
+            }
+            near.sort_by(f32::total_cmp);
+            if (p - near[near.len() / 2]).abs() > std::f32::consts::PI {
+                out[y * w + x] = f32::NAN;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::PinholeModel;
+
+    #[test]
+    fn an_order_error_is_dropped_and_its_neighbours_kept() {
+        let (w, h) = (5, 5);
+        let mut phase: Vec<f32> = (0..w * h).map(|i| 0.3 * (i % w) as f32).collect();
+        phase[12] += std::f32::consts::TAU;
+        let clean = drop_order_spikes(&phase, w, h);
+        assert!(clean[12].is_nan());
+        assert_eq!(clean.iter().filter(|v| v.is_nan()).count(), 1);
+    }
+
+    #[test]
+    fn board_pose_maps_corner_zero_to_the_twins_first_inner_corner() {
+        let sim = TwinHead::standard(2, &Detail::default());
+        let camera = &sim.rig.cameras[0].model;
+        for v in 0..2 {
+            let want = CHECKERBOARD.corners_px(&sim.world_from_board[v], camera);
+            let model = PinholeModel {
+                pose: sim.board_pose(v),
+                ..sim.truth.camera
+            };
+            let flipped = PinholeModel {
+                pose: sim.flipped_board_pose(v),
+                ..sim.truth.camera
+            };
+            let corners = board().corners_m();
+            for (i, c) in corners.iter().enumerate() {
+                let p = nalgebra::Point3::new(c.x, c.y, 0.0);
+                let got = model.project(&p).unwrap();
+                let t = want[i].unwrap();
+                assert!((got.x - t[0]).abs() < 1e-9 && (got.y - t[1]).abs() < 1e-9);
+                let got = flipped.project(&p).unwrap();
+                let t = want[corners.len() - 1 - i].unwrap();
+                assert!((got.x - t[0]).abs() < 1e-9 && (got.y - t[1]).abs() < 1e-9);
+            }
+        }
+    }
 }
