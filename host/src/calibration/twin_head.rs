@@ -104,7 +104,8 @@ impl TwinHead {
         }
     }
 
-    /// A second head about 15 cm to the side (its own camera intrinsics and lens),
+    /// A second head 15 cm to the left (its own camera intrinsics and lens, its projector
+    /// 12 cm to the camera's right as in head 0),
     /// aimed at the same boards; returns it and the true head-0 camera -> head-1
     /// camera pose.
     pub fn second_head(&self) -> (TwinHead, Pose) {
@@ -123,7 +124,7 @@ impl TwinHead {
         let proj = &mut rig.projectors[0];
         proj.name = "proj-b".into();
         proj.model.world_from_device = look_at(
-            V3::new(-0.27, 0.0, 0.04),
+            V3::new(-0.03, 0.0, 0.04),
             target + V3::new(0.0, 0.09, 0.0),
             down,
         );
