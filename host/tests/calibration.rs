@@ -1,5 +1,6 @@
 //! Calibration end to end on formula-rendered views (see
-//! `calibration::synthetic`: a PLACEHOLDER for the digital twin): detection
+//! `calibration::synthetic`, kernels in isolation; the digital-twin version is
+//! `twin_accuracy.rs`, and `cli_sim_then_images_round_trip` runs the twin): detection
 //! accuracy against the true projected corners, camera intrinsics and
 //! distortion, projector intrinsics and camera -> projector pose from phase
 //! maps, and head-to-head pose, each against the simulation's truth.
