@@ -14,6 +14,7 @@ pub mod board;
 pub mod bundle;
 pub mod detect;
 pub mod extrinsics;
+pub mod from_twin;
 pub mod head;
 pub mod homography;
 pub mod lm;
@@ -24,6 +25,7 @@ pub mod rig_file;
 pub mod rodrigues;
 pub mod sim_head;
 pub mod synthetic;
+pub mod twin_head;
 pub mod zhang;
 
 pub use pinhole::{CameraModel, Distortion, Intrinsics, PinholeModel, Pose, ProjectorModel, Ray};

@@ -1,7 +1,7 @@
-//! A simulated head with known truth, rendered by the formula-based renderer.
-//!
-//! PLACEHOLDER: stands in for the digital twin's calibration scenes (hil-sim)
-//! until they land; `slscan calibrate --sim` and the calibration tests use it.
+//! A simulated head with known truth, rendered by the formula-based renderer
+//! (`calibration::synthetic`, not the digital twin): the calibration kernel tests
+//! (host/tests/calibration.rs) use it to test detection and calibration in isolation.
+//! `slscan calibrate --sim` and the twin accuracy tests use [`super::twin_head`].
 //! Views sweep the board through tilts of up to about 20 degrees and
 //! in-plane turns, as a person would hold it, at 0.45..0.55 m.
 

@@ -5,14 +5,18 @@
 //! also needs its absolute phase maps `STEM.phase_x.npy` and
 //! `STEM.phase_y.npy`, and the whole head (camera, projector, camera ->
 //! projector) is written as a rig file; without it only the camera is
-//! calibrated and written as a camera file. `--sim` renders the views
-//! instead (PLACEHOLDER: formula-based renderer until the twin lands) and
-//! prints the recovered values next to the truth.
+//! calibrated and written as a camera file. `--sim` renders the views with
+//! the digital twin instead (`calibration::twin_head`: the twin's single
+//! head, 640x480 camera, 1280x800 DMD, its 8x6-corner 20 mm checkerboard,
+//! x/y fringe phase maps decoded and unwrapped by slscan) and prints the
+//! recovered values next to the twin's true devices.
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
+use hil_sim::twin::scenes::Detail;
+use hil_sim::twin::SensorModel;
 use serde::Serialize;
 use slscan::calibration::board::{Checkerboard, CircleGrid, GrayImage, Target};
 use slscan::calibration::bundle::CameraCalibrationOptions;
@@ -22,9 +26,9 @@ use slscan::calibration::head::{
     HeadCalibration, HeadOptions, ProjectorSpec,
 };
 use slscan::calibration::rodrigues::rotation_angle_between;
-use slscan::calibration::sim_head::SimHead;
-use slscan::calibration::synthetic::{BitDepth, RenderSettings};
-use slscan::calibration::{write_rig, PinholeModel, RigCalibration};
+use slscan::calibration::synthetic::BitDepth;
+use slscan::calibration::twin_head::{self, TwinHead};
+use slscan::calibration::{write_rig, Head, PinholeModel, RigCalibration};
 use slscan::io::write_atomically;
 
 /// Options of `slscan calibrate`.
@@ -33,7 +37,7 @@ pub struct Args {
     /// Folder of board captures (PNG/TIFF, 8 or 16 bit), one board pose per file.
     #[arg(long, value_name = "DIR", required_unless_present = "sim")]
     images: Option<PathBuf>,
-    /// Render the views instead (PLACEHOLDER: formula-based renderer, not yet the digital twin).
+    /// Render the views with the digital twin instead, and compare with its true devices.
     #[arg(long, conflicts_with = "images")]
     sim: bool,
     /// Output JSON: a rig file (head calibrated) or a camera file (camera only).
@@ -66,9 +70,10 @@ pub struct Args {
     /// --sim: number of board poses (at most 15).
     #[arg(long, default_value_t = 12)]
     views: usize,
-    /// --sim: sensor noise, grey levels (0..1).
-    #[arg(long, default_value_t = 0.01)]
-    noise: f64,
+    /// --sim: sensor read noise, grey levels (0..1), photon shot noise on top; default:
+    /// the twin's 12-bit sensor (6 e- of a 10 ke- full well, 0.0006).
+    #[arg(long)]
+    noise: Option<f64>,
     /// --sim: bit depth of the rendered images (8 or 16).
     #[arg(long, default_value_t = 8, value_parser = parse_bits)]
     bits: u8,
@@ -135,28 +140,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn run_sim(args: &Args, options: &HeadOptions) -> anyhow::Result<()> {
-    tracing::warn!(
-        "PLACEHOLDER: --sim renders views with the formula-based checkerboard renderer \
-         (calibration::synthetic), not the digital twin, until hil-sim's twin lands"
-    );
-    eprintln!("slscan: PLACEHOLDER: --sim uses the formula-based renderer, not the digital twin");
     if args.views < 3 {
         bail!(
             "--views {} is too few: a calibration with distortion needs >= 3",
             args.views
         );
     }
-    let sim = SimHead::standard(args.views);
-    let settings = RenderSettings {
-        noise_sigma: args.noise,
-        bit_depth: if args.bits == 16 {
-            BitDepth::Sixteen
-        } else {
-            BitDepth::Eight
-        },
-        ..RenderSettings::default()
+    let base = SensorModel::mono12();
+    let read_noise_e = match args.noise {
+        Some(n) if n.is_finite() && n >= 0.0 => n * base.full_well_e / base.gain,
+        Some(n) => bail!("--noise {n} is not a non-negative grey level"),
+        None => base.read_noise_e,
     };
-    let target = Target::Checkerboard(sim.board);
+    let sim = TwinHead::standard(args.views, &Detail::default());
+    let sensor = SensorModel {
+        read_noise_e,
+        bits: args.bits,
+        ..base
+    };
+    let bit_depth = if args.bits == 16 {
+        BitDepth::Sixteen
+    } else {
+        BitDepth::Eight
+    };
+    let target = Target::Checkerboard(twin_head::board());
     let (second, true_head_to_head) = sim.second_head();
     let mut heads = vec![(args.head.clone(), sim)];
     if args.two_heads {
@@ -165,20 +172,22 @@ fn run_sim(args: &Args, options: &HeadOptions) -> anyhow::Result<()> {
     let mut calibrated = Vec::new();
     let mut first_views = Vec::new();
     for (name, sim) in &heads {
-        let captures = sim.render(&settings, true);
+        let captures = sim
+            .render(&sensor, 1, true)
+            .with_context(|| format!("rendering head {name} with the digital twin"))?;
         if let Some(dir) = &args.save_images {
             let dir = if args.two_heads {
                 dir.join(name)
             } else {
                 dir.clone()
             };
-            save_captures(&dir, &captures, settings.bit_depth)?;
+            save_captures(&dir, &captures, bit_depth)?;
         }
         let cal = calibrate_head(name, &target, &captures, &sim.projector_spec(), options)
             .with_context(|| format!("calibrating simulated head {name}"))?;
         println!("== head {name}");
         print_head(&cal);
-        print_truth_comparison(sim, &cal);
+        print_truth_comparison(&sim.truth, &cal);
         first_views.extend(captures.into_iter().next().map(|c| c.image));
         calibrated.push(cal.head);
     }
@@ -401,12 +410,12 @@ fn print_head(cal: &HeadCalibration) {
     );
 }
 
-fn print_truth_comparison(sim: &SimHead, cal: &HeadCalibration) {
+fn print_truth_comparison(truth: &Head, cal: &HeadCalibration) {
     let pairs = [
-        ("camera", &cal.head.camera, &sim.camera),
-        ("projector", &cal.head.projector, &sim.projector),
+        ("camera", &cal.head.camera, &truth.camera),
+        ("projector", &cal.head.projector, &truth.projector),
     ];
-    println!("recovered - true (simulation):");
+    println!("recovered - true (digital twin):");
     for (what, got, truth) in pairs {
         let (g, t) = (got.intrinsics, truth.intrinsics);
         println!(
@@ -423,9 +432,9 @@ fn print_truth_comparison(sim: &SimHead, cal: &HeadCalibration) {
     }
     let angle = rotation_angle_between(
         &cal.head.projector.pose.rotation,
-        &sim.projector.pose.rotation,
+        &truth.projector.pose.rotation,
     );
-    let dt = (cal.head.projector.pose.translation_m - sim.projector.pose.translation_m).norm();
+    let dt = (cal.head.projector.pose.translation_m - truth.projector.pose.translation_m).norm();
     println!(
         "  camera->projector: rotation {:.4} deg, translation {:.3} mm",
         angle.to_degrees(),
