@@ -8,7 +8,7 @@ use std::collections::BTreeSet;
 use protocol::limits::CameraProfile;
 use protocol::Level;
 
-use super::delay::{Delay, DelaySource};
+use super::delay::{Delay, DelayedLine};
 use super::LineEdge;
 
 /// How a simulated camera responds to its trigger input.
@@ -67,12 +67,11 @@ pub enum MissReason {
 #[derive(Clone, Debug)]
 pub struct Camera {
     config: CameraConfig,
-    delay: DelaySource,
+    feedback: DelayedLine,
     triggers_received: u64,
     last_accepted_rise_ns: Option<u64>,
     last_fall_ns: Option<u64>,
     exposing: bool,
-    last_out_ns: u64,
     exposures: Vec<Exposure>,
     missed: Vec<(u64, MissReason)>,
 }
@@ -80,15 +79,13 @@ pub struct Camera {
 impl Camera {
     /// A camera with `config`, its jitter reproducible from `seed`.
     pub fn new(config: CameraConfig, seed: u64) -> Self {
-        let delay = DelaySource::new(config.trigger_delay, seed);
         Self {
+            feedback: DelayedLine::new(config.trigger_delay, seed),
             config,
-            delay,
             triggers_received: 0,
             last_accepted_rise_ns: None,
             last_fall_ns: None,
             exposing: false,
-            last_out_ns: 0,
             exposures: Vec::new(),
             missed: Vec::new(),
         }
@@ -110,7 +107,7 @@ impl Camera {
                 if !std::mem::take(&mut self.exposing) {
                     return None;
                 }
-                let edge = self.mirror(Level::Low, at_ns);
+                let edge = self.feedback.mirror(Level::Low, at_ns);
                 if let Some(exposure) = self.exposures.last_mut() {
                     exposure.end_ns = Some(edge.at_ns);
                 }
@@ -138,7 +135,7 @@ impl Camera {
         }
         self.last_accepted_rise_ns = Some(at_ns);
         self.exposing = true;
-        let edge = self.mirror(Level::High, at_ns);
+        let edge = self.feedback.mirror(Level::High, at_ns);
         self.exposures.push(Exposure {
             frame_index: self.exposures.len() as u32,
             trigger_index,
@@ -146,15 +143,6 @@ impl Camera {
             end_ns: None,
         });
         Some(edge)
-    }
-
-    fn mirror(&mut self, level: Level, at_ns: u64) -> LineEdge {
-        let out_ns = (at_ns + self.delay.next_ns()).max(self.last_out_ns + 1);
-        self.last_out_ns = out_ns;
-        LineEdge {
-            level,
-            at_ns: out_ns,
-        }
     }
 
     /// Every frame taken so far, in order.

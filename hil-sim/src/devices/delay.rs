@@ -69,6 +69,36 @@ impl DelaySource {
     }
 }
 
+/// A device's feedback output that follows its input after a [`Delay`]:
+/// edges keep their order even where jitter would swap two close ones (a line
+/// cannot fall before it rose). Shared by the projector's trigger-out and the
+/// camera's exposure-active line.
+#[derive(Clone, Debug)]
+pub struct DelayedLine {
+    delay: DelaySource,
+    last_out_ns: u64,
+}
+
+impl DelayedLine {
+    /// A line delayed by `delay`, its jitter reproducible from `seed`.
+    pub fn new(delay: Delay, seed: u64) -> Self {
+        Self {
+            delay: DelaySource::new(delay, seed),
+            last_out_ns: 0,
+        }
+    }
+
+    /// The output edge for an input edge to `level` at `at_ns`.
+    pub fn mirror(&mut self, level: protocol::Level, at_ns: u64) -> super::LineEdge {
+        let out_ns = (at_ns + self.delay.next_ns()).max(self.last_out_ns + 1);
+        self.last_out_ns = out_ns;
+        super::LineEdge {
+            level,
+            at_ns: out_ns,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

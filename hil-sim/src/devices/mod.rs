@@ -12,7 +12,7 @@ pub mod delay;
 pub mod projector;
 
 pub use camera::{Camera, CameraConfig, Exposure, MissReason};
-pub use delay::{Delay, DelaySource};
+pub use delay::{Delay, DelaySource, DelayedLine};
 pub use projector::{Displayed, Projector, ProjectorConfig};
 
 /// An edge on a device's feedback line, in virtual nanoseconds.

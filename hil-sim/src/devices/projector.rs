@@ -6,7 +6,7 @@
 use protocol::limits::ProjectorProfile;
 use protocol::Level;
 
-use super::delay::{Delay, DelaySource};
+use super::delay::{Delay, DelayedLine};
 use super::LineEdge;
 
 /// How a simulated projector responds to its trigger input.
@@ -58,12 +58,11 @@ pub struct Displayed {
 #[derive(Clone, Debug)]
 pub struct Projector {
     config: ProjectorConfig,
-    delay: DelaySource,
+    feedback: DelayedLine,
     last_accepted_rise_ns: Option<u64>,
     // Whether the current trigger-in pulse was accepted, so its falling edge
     // is mirrored too (an ignored pulse leaves trigger-out quiet).
     mirroring: bool,
-    last_out_ns: u64,
     display_sequence_ns: Vec<u64>,
     displayed: Vec<Displayed>,
     ignored_triggers_ns: Vec<u64>,
@@ -74,10 +73,9 @@ impl Projector {
     pub fn new(config: ProjectorConfig, seed: u64) -> Self {
         Self {
             config,
-            delay: DelaySource::new(config.trigger_delay, seed),
+            feedback: DelayedLine::new(config.trigger_delay, seed),
             last_accepted_rise_ns: None,
             mirroring: false,
-            last_out_ns: 0,
             display_sequence_ns: Vec::new(),
             displayed: Vec::new(),
             ignored_triggers_ns: Vec::new(),
@@ -105,7 +103,7 @@ impl Projector {
             Level::High => self.on_rise(at_ns),
             Level::Low if self.mirroring => {
                 self.mirroring = false;
-                Some(self.mirror(Level::Low, at_ns))
+                Some(self.feedback.mirror(Level::Low, at_ns))
             }
             Level::Low => None,
         }
@@ -121,7 +119,7 @@ impl Projector {
         }
         self.last_accepted_rise_ns = Some(at_ns);
         self.mirroring = true;
-        let edge = self.mirror(Level::High, at_ns);
+        let edge = self.feedback.mirror(Level::High, at_ns);
         if let Some(previous) = self.displayed.last_mut() {
             previous.end_ns = previous.end_ns.min(edge.at_ns);
         }
@@ -137,17 +135,6 @@ impl Projector {
             end_ns: edge.at_ns + display_ns,
         });
         Some(edge)
-    }
-
-    /// The trigger-out edge for an input edge: delayed, and never before the
-    /// previous output edge (a line cannot fall before it rose).
-    fn mirror(&mut self, level: Level, at_ns: u64) -> LineEdge {
-        let out_ns = (at_ns + self.delay.next_ns()).max(self.last_out_ns + 1);
-        self.last_out_ns = out_ns;
-        LineEdge {
-            level,
-            at_ns: out_ns,
-        }
     }
 
     /// Every pattern shown so far, in order.
