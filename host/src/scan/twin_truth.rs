@@ -2,46 +2,14 @@
 //! true device models, in each head's camera frame. This is the twin's
 //! truth, NOT an estimated calibration; reports say so.
 
-use hil_sim::twin::{Pinhole, Rig};
-use nalgebra::{Isometry3, Matrix3, Vector3};
+use hil_sim::twin::Rig;
+use nalgebra::Isometry3;
 
-use crate::calibration::{Distortion, Head, Intrinsics, PinholeModel, Pose, RigCalibration};
+use crate::calibration::from_twin::{head_from_twin, pose_from_twin};
+use crate::calibration::RigCalibration;
 
 /// Head names in plan order.
 pub const HEAD_NAMES: [&str; 2] = ["A", "B"];
-
-/// The host's model of a twin device, with `world_to_device` as its pose.
-fn model(device: &Pinhole, world_to_device: &Isometry3<f64>) -> PinholeModel {
-    let k = &device.intrinsics;
-    let d = &device.distortion;
-    PinholeModel {
-        width_px: k.width,
-        height_px: k.height,
-        intrinsics: Intrinsics {
-            fx: k.fx,
-            fy: k.fy,
-            cx: k.cx,
-            cy: k.cy,
-        },
-        distortion: Distortion {
-            k1: d.k1,
-            k2: d.k2,
-            p1: d.p1,
-            p2: d.p2,
-            k3: d.k3,
-        },
-        pose: pose(world_to_device),
-    }
-}
-
-/// An isometry as the calibration's rotation + translation.
-pub fn pose(iso: &Isometry3<f64>) -> Pose {
-    let r: Matrix3<f64> = *iso.rotation.to_rotation_matrix().matrix();
-    Pose {
-        rotation: r,
-        translation_m: Vector3::from(iso.translation.vector),
-    }
-}
 
 /// Head `h`'s frame (its camera frame) from the twin's world frame.
 pub fn head_from_world(rig: &Rig, h: usize) -> Isometry3<f64> {
@@ -51,21 +19,15 @@ pub fn head_from_world(rig: &Rig, h: usize) -> Isometry3<f64> {
 /// The rig calibration of the twin's first `heads` camera/projector pairs:
 /// each head in its camera's frame, `head_to_head` = head A's frame -> head B's.
 pub fn twin_calibration(rig: &Rig, heads: usize) -> RigCalibration {
-    let heads_out: Vec<Head> = (0..heads)
+    let heads_out = (0..heads)
         .map(|h| {
-            let cam_from_world = head_from_world(rig, h);
-            let proj = &rig.projectors[h].model;
-            // Projector pose in the head frame: device <- world <- camera.
-            let proj_from_cam = proj.world_from_device.inverse() * cam_from_world.inverse();
-            Head {
-                name: HEAD_NAMES[h].to_string(),
-                camera: model(&rig.cameras[h].model, &Isometry3::identity()),
-                projector: model(proj, &proj_from_cam),
-                view_errors: Vec::new(),
-            }
+            head_from_twin(rig, h, h, HEAD_NAMES[h])
+                .unwrap_or_else(|| panic!("the twin rig has no camera/projector pair {h}"))
         })
         .collect();
-    let head_to_head = (heads == 2).then(|| pose(&b_from_a(rig)));
+    // pose_from_twin inverts a twin (device -> world) pose, so hand it B -> A
+    // to get the A -> B pose the calibration stores.
+    let head_to_head = (heads == 2).then(|| pose_from_twin(&b_from_a(rig).inverse()));
     RigCalibration {
         heads: heads_out,
         head_to_head,
