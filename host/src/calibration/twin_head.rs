@@ -56,7 +56,7 @@ pub fn board() -> Checkerboard {
 
 /// Board tilts (Rodrigues vectors) as a person holds a board: up to about 20 degrees
 /// out of plane and turns in plane.
-const TILTS: [(f64, f64, f64); 15] = [
+pub(crate) const TILTS: [(f64, f64, f64); 15] = [
     (0.0, 0.0, 0.0),
     (0.3, 0.0, 0.05),
     (-0.3, 0.05, -0.05),
