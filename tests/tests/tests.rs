@@ -4,4 +4,5 @@
 mod dual_head;
 mod faults;
 mod firmware_parity;
+mod scan_overlap;
 mod sync_chain;

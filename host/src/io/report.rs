@@ -27,6 +27,12 @@ pub struct HeadReport {
     pub coverage: f64,
     /// Fraction of this camera's object pixels lit by its projector that were reconstructed.
     pub own_pixel_coverage: f64,
+    /// This camera's pixels whose surface point both projectors light (truth).
+    pub overlap_pixels: usize,
+    /// Valid points among them.
+    pub overlap_points: usize,
+    /// `rmse_um` over those points only, micrometres (null when none).
+    pub overlap_rmse_um: f64,
 }
 
 /// The ICP refinement of the calibrated head-to-head pose.
@@ -140,6 +146,9 @@ mod tests {
             plane_rmse_um: 1.0,
             coverage: 0.0,
             own_pixel_coverage: 0.0,
+            overlap_pixels: 0,
+            overlap_points: 0,
+            overlap_rmse_um: f64::NAN,
         };
         let report = ScanReport {
             scene: "x".into(),

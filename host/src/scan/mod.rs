@@ -75,6 +75,13 @@ pub struct ScanConfig {
     pub board: SimBoardConfig,
     /// Timeouts of the board client.
     pub client: ClientConfig,
+    /// The simulated projectors' intensity response, displayed grey g ->
+    /// g^gamma (twin only; 1 = a DMD in pattern mode, about 2.2 through a
+    /// video input).
+    pub sim_projector_gamma: f64,
+    /// Projector response the patterns are pre-compensated for (each grey
+    /// level g sent as g^(1/gamma)); `None` sends linear patterns.
+    pub precompensate_gamma: Option<f64>,
 }
 
 impl ScanConfig {
@@ -95,6 +102,8 @@ impl ScanConfig {
                 attempt_timeout: std::time::Duration::from_secs(2),
                 attempts: 3,
             },
+            sim_projector_gamma: 1.0,
+            precompensate_gamma: None,
         }
     }
 }
@@ -146,6 +155,12 @@ pub enum ScanError {
         head: &'static str,
         /// Why.
         source: crate::demultiplex::DemuxError,
+    },
+    /// A pre-compensation gamma that is not a positive finite number.
+    #[error("pre-compensation gamma {gamma} is not a positive finite number")]
+    BadGamma {
+        /// The value given.
+        gamma: f64,
     },
     /// The plan could not be built.
     #[error("plan")]
@@ -211,6 +226,9 @@ pub struct HeadResult {
     pub error_m: Raster<f32>,
     /// Per-pixel accuracy.
     pub accuracy: PixelAccuracy,
+    /// Per-pixel accuracy on the overlap: pixels whose surface point both
+    /// projectors light (the twin's truth), where the modes differ.
+    pub overlap: metrics::MaskedAccuracy,
     /// Point-to-plane RMSE against the true surface, metres.
     pub plane_rmse_m: f64,
     /// Coverage of the measurable object surface.
@@ -279,7 +297,16 @@ pub fn run_sim(
         camera: config.camera_px,
         projector: config.projector_px,
     };
-    let (scene, rig) = built_in(&config.scene, &detail)?;
+    if let Some(gamma) = config
+        .precompensate_gamma
+        .filter(|g| !(g.is_finite() && *g > 0.0))
+    {
+        return Err(ScanError::BadGamma { gamma });
+    }
+    let (scene, mut rig) = built_in(&config.scene, &detail)?;
+    for p in &mut rig.projectors {
+        p.gamma = config.sim_projector_gamma;
+    }
     if rig.cameras.len() != 2 || rig.projectors.len() != 2 {
         return Err(ScanError::NotDualHead {
             scene: config.scene.clone(),
@@ -392,6 +419,7 @@ pub fn run_sim(
         let g = geometries[h].geometry();
         let head_from_world = twin_truth::head_from_world(twin.rig(), h);
         let accuracy = metrics::pixel_accuracy(&recon, g, &head_from_world, h, &is_object);
+        let overlap = metrics::masked_accuracy(&recon, g, &head_from_world, &g.overlap);
         let a_from_head = a_from_world * head_from_world.inverse();
         let cloud_in_a = transformed(&recon.cloud, &a_from_head);
         let pts = points_f64(&cloud_in_a);
@@ -405,6 +433,7 @@ pub fn run_sim(
             cloud_in_a,
             error_m,
             accuracy,
+            overlap,
         });
         progress(Progress::Step);
     }

@@ -53,7 +53,8 @@ pub fn report(scan: &ScanResult) -> ScanReport {
         truth_note: "rmse_um per head: each valid pixel's point vs the true point of that pixel; \
             plane_rmse_um and fused.rmse_um: each point vs the tangent plane of its nearest true surface sample; \
             coverage: fraction of the measurable object surface (pixels of either camera seeing the object, \
-            all scene objects but the background wall, lit by that camera's own projector) with a cloud point within 1 mm"
+            all scene objects but the background wall, lit by that camera's own projector) with a cloud point within 1 mm; \
+            overlap_rmse_um: rmse_um over the pixels whose surface point both projectors light (twin truth)"
             .into(),
         surface_samples: scan.surface_samples,
         heads: scan
@@ -69,6 +70,9 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                 plane_rmse_um: h.plane_rmse_m * um,
                 coverage: h.coverage,
                 own_pixel_coverage: h.accuracy.own_coverage,
+                overlap_pixels: h.overlap.pixels,
+                overlap_points: h.overlap.points,
+                overlap_rmse_um: h.overlap.rmse_m * um,
             })
             .collect(),
         fused: FusedReport {

@@ -37,6 +37,14 @@ pub struct Args {
     /// default: seed 004's three pitches over the DMD width (S = 64).
     #[arg(long, value_delimiter = ',')]
     periods: Option<Vec<f64>>,
+    /// The simulated projectors' response: intensity = grey^gamma
+    /// (1 = DMD pattern mode; about 2.2 through a video input).
+    #[arg(long, default_value_t = 1.0)]
+    sim_projector_gamma: f64,
+    /// Pre-compensate the patterns for a projector response of this gamma
+    /// (send grey^(1/gamma)).
+    #[arg(long)]
+    precompensate_gamma: Option<f64>,
 }
 
 /// `--mode` values.
@@ -65,6 +73,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     config.camera_px = (args.width, args.height);
     config.seed = args.seed;
+    config.sim_projector_gamma = args.sim_projector_gamma;
+    config.precompensate_gamma = args.precompensate_gamma;
     if let Some(periods) = args.periods {
         config.periods_px = periods;
     }
@@ -100,6 +110,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!(
             "head {}: {} points, RMSE {:.1} um (predicted {:.1} um; median {:.1} um, {} over 1 mm), coverage {:.3}",
             h.name, h.points, h.rmse_um, h.predicted_rms_um, h.median_error_um, h.outliers_over_1mm, h.coverage
+        );
+        println!(
+            "head {} overlap (pixels lit by both projectors): {} of {} pixels reconstructed, RMSE {:.1} um",
+            h.name, h.overlap_points, h.overlap_pixels, h.overlap_rmse_um
         );
     }
     let f = &report.fused;
