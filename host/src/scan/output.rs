@@ -4,6 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use super::{Mode, ScanResult};
+use crate::io::cloud_render::{render_cloud, splat_radius_for, CloudView};
+use crate::io::images::save_rgb_png;
 use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
@@ -95,8 +97,14 @@ pub fn report(scan: &ScanResult) -> ScanReport {
     }
 }
 
+/// The two views of the fused cloud's pictures (name, yaw, pitch in
+/// degrees, about head A's frame): nearly head A's line of sight, and from
+/// the right and above, where the relief shows.
+pub const CLOUD_VIEWS: [(&str, f64, f64); 2] = [("front", 0.0, 0.0), ("oblique", -35.0, 25.0)];
+
 /// Writes `dir/{camera,phase,depth,error}_{a,b}.png` (error: black = exact,
-/// white = 500 um or more), `head_a.ply`,
+/// white = 500 um or more), `cloud_{front,oblique}.png` (the fused cloud,
+/// Lambert-shaded from PCA normals), `head_a.ply`,
 /// `head_b.ply`, `report.json`, then `scan.ply`.
 pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError> {
     std::fs::create_dir_all(dir).map_err(|source| OutputError::Dir {
@@ -142,8 +150,47 @@ pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputErr
         save_gray_png(&dir.join(format!("error_{tag}.png")), &err, false)?;
         write_ply(&dir.join(format!("head_{tag}.ply")), &h.cloud_in_a)?;
     }
+    write_cloud_pictures(dir, &scan.fused.cloud, scan.config.camera_px)?;
     let report = report(scan);
     write_report(&dir.join("report.json"), &report)?;
     write_ply(&dir.join("scan.ply"), &scan.fused.cloud)?;
     Ok(report)
+}
+
+/// `cloud_{view}.png` for each of [`CLOUD_VIEWS`]: normals from the
+/// cloud, else estimated by PCA (12 neighbours; the renderer ignores their
+/// sign), else none (shaded by depth) when the cloud is too small for PCA.
+fn write_cloud_pictures(
+    dir: &Path,
+    cloud: &crate::point_cloud::PointCloud,
+    size_px: (u32, u32),
+) -> Result<(), OutputError> {
+    let estimated: Option<Vec<[f32; 3]>> = match &cloud.normals {
+        Some(_) => None,
+        None => crate::fusion::estimate_normals(
+            &super::clouds::points_f64(cloud),
+            12,
+            &nalgebra::Vector3::zeros(),
+        )
+        .ok()
+        .map(|ns| {
+            ns.iter()
+                .map(|n| [n.x as f32, n.y as f32, n.z as f32])
+                .collect()
+        }),
+    };
+    let normals = cloud.normals.as_deref().or(estimated.as_deref());
+    let splat = splat_radius_for(cloud.len(), size_px);
+    for (name, yaw_deg, pitch_deg) in CLOUD_VIEWS {
+        let picture = match CloudView::framing(&cloud.points_m, yaw_deg, pitch_deg, size_px) {
+            Some(view) => render_cloud(&cloud.points_m, normals, &view, splat),
+            None => Raster::filled(
+                size_px.0 as usize,
+                size_px.1 as usize,
+                crate::io::cloud_render::BACKGROUND,
+            ),
+        };
+        save_rgb_png(&dir.join(format!("cloud_{name}.png")), &picture)?;
+    }
+    Ok(())
 }
