@@ -184,13 +184,16 @@ pub enum ScanError {
     Output(#[from] output::OutputError),
 }
 
-/// Runs [`run_sim`] and, only when it succeeded, writes the result into
-/// `dir` ([`output::write_scan`]): a failed scan leaves no `scan.ply`.
+/// Removes an earlier run's outputs from `dir` ([`output::remove_stale`]),
+/// runs [`run_sim`] and, only when it succeeded, writes the result into
+/// `dir` ([`output::write_scan`]): a failed scan leaves no `scan.ply` or
+/// `report.json`, neither its own nor an older one.
 pub fn scan_to_dir(
     config: &ScanConfig,
     dir: &std::path::Path,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<crate::io::report::ScanReport, ScanError> {
+    output::remove_stale(dir)?;
     let result = run_sim(config, progress)?;
     Ok(output::write_scan(dir, &result)?)
 }

@@ -24,6 +24,14 @@ pub enum OutputError {
         /// Why.
         source: std::io::Error,
     },
+    /// An earlier run's output could not be removed.
+    #[error("removing the earlier run's {path}: {source}")]
+    Stale {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
     /// A picture.
     #[error(transparent)]
     Image(#[from] ImageError),
@@ -33,6 +41,35 @@ pub enum OutputError {
     /// The report.
     #[error(transparent)]
     Report(#[from] ReportError),
+}
+
+/// Every file [`write_scan`] writes into its folder.
+pub fn output_files() -> Vec<String> {
+    let mut files: Vec<String> = ["scan.ply", "report.json", "head_a.ply", "head_b.ply"]
+        .map(String::from)
+        .to_vec();
+    for kind in ["camera", "phase", "depth", "error"] {
+        for head in ["a", "b"] {
+            files.push(format!("{kind}_{head}.png"));
+        }
+    }
+    files.extend(CLOUD_VIEWS.map(|(name, ..)| format!("cloud_{name}.png")));
+    files
+}
+
+/// Removes an earlier run's outputs ([`output_files`], nothing else) from
+/// `dir`, so a scan that fails leaves no old `scan.ply` or `report.json`
+/// that could be read as its result. A missing folder or file is fine.
+pub fn remove_stale(dir: &Path) -> Result<(), OutputError> {
+    for name in output_files() {
+        let path = dir.join(name);
+        match std::fs::remove_file(&path) {
+            Ok(()) => tracing::info!(path = %path.display(), "removed an earlier run's output"),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(source) => return Err(OutputError::Stale { path, source }),
+        }
+    }
+    Ok(())
 }
 
 /// The report of a finished scan.
@@ -193,4 +230,28 @@ fn write_cloud_pictures(
         save_rgb_png(&dir.join(format!("cloud_{name}.png")), &picture)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_outputs_go_and_other_files_stay() {
+        let dir = std::env::temp_dir().join(format!("slscan-stale-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for name in ["scan.ply", "report.json", "cloud_front.png", "notes.txt"] {
+            std::fs::write(dir.join(name), b"old").unwrap();
+        }
+        remove_stale(&dir).unwrap();
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, ["notes.txt"]);
+        // Nothing there (or no folder at all) is fine.
+        remove_stale(&dir).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        remove_stale(&dir).unwrap();
+    }
 }
