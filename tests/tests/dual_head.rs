@@ -84,6 +84,8 @@ fn check_fused_scan(mode: Mode, name: &str) -> ScanReport {
         "head_b.ply",
         "report.json",
         "error_a.png",
+        "cloud_front.png",
+        "cloud_oblique.png",
     ] {
         assert!(dir.join(file).is_file(), "{file} written");
     }

@@ -4,4 +4,6 @@
 mod dual_head;
 mod faults;
 mod firmware_parity;
+mod scan_overlap;
+mod stale_output;
 mod sync_chain;

@@ -28,6 +28,12 @@ pub struct HeadReport {
     pub coverage: Option<f64>,
     /// Fraction of this camera's object pixels lit by its projector that were reconstructed.
     pub own_pixel_coverage: Option<f64>,
+    /// This camera's pixels whose surface point both projectors light (truth).
+    pub overlap_pixels: Option<usize>,
+    /// Valid points among them.
+    pub overlap_points: Option<usize>,
+    /// `rmse_um` over those points only, micrometres (null when none).
+    pub overlap_rmse_um: Option<f64>,
 }
 
 /// The ICP refinement of the calibrated head-to-head pose.
@@ -141,6 +147,9 @@ mod tests {
             plane_rmse_um: Some(1.0),
             coverage: None,
             own_pixel_coverage: Some(0.0),
+            overlap_pixels: Some(0),
+            overlap_points: Some(0),
+            overlap_rmse_um: Some(f64::NAN),
         };
         let report = ScanReport {
             scene: "x".into(),

@@ -71,6 +71,7 @@ pub fn measure(
         let g = geometries[h].geometry();
         let head_from_world = twin_truth::head_from_world(twin.rig(), h);
         let accuracy = metrics::pixel_accuracy(recon, g, &head_from_world, h, &truth.is_object);
+        let overlap = metrics::masked_accuracy(recon, g, &head_from_world, &g.overlap);
         let a_from_head = a_from_world * head_from_world.inverse();
         let pts = points_f64(&transformed(&recon.cloud, &a_from_head));
         heads.push(HeadTruth {
@@ -78,6 +79,7 @@ pub fn measure(
             coverage: metrics::coverage(&pts, &surface)?,
             error_m: error_map(recon, g, &head_from_world),
             accuracy,
+            overlap,
         });
     }
     let fused_pts = points_f64(fused);

@@ -86,6 +86,13 @@ pub struct ScanConfig {
     pub board: SimBoardConfig,
     /// Timeouts of the board client.
     pub client: ClientConfig,
+    /// The simulated projectors' intensity response, displayed grey g ->
+    /// g^gamma (twin only; 1 = a DMD in pattern mode, about 2.2 through a
+    /// video input).
+    pub sim_projector_gamma: f64,
+    /// Projector response the patterns are pre-compensated for (each grey
+    /// level g sent as g^(1/gamma)); `None` sends linear patterns.
+    pub precompensate_gamma: Option<f64>,
 }
 
 impl ScanConfig {
@@ -107,6 +114,8 @@ impl ScanConfig {
                 attempt_timeout: std::time::Duration::from_secs(2),
                 attempts: 3,
             },
+            sim_projector_gamma: 1.0,
+            precompensate_gamma: None,
         }
     }
 }
@@ -170,6 +179,12 @@ pub enum ScanError {
         /// Why.
         source: crate::demultiplex::DemuxError,
     },
+    /// A pre-compensation gamma that is not a positive finite number.
+    #[error("pre-compensation gamma {gamma} is not a positive finite number")]
+    BadGamma {
+        /// The value given.
+        gamma: f64,
+    },
     /// The plan could not be built.
     #[error("plan")]
     Plan(#[from] plan::PlanBuildError),
@@ -192,13 +207,16 @@ pub enum ScanError {
     Output(#[from] output::OutputError),
 }
 
-/// Runs [`run_sim`] and, only when it succeeded, writes the result into
-/// `dir` ([`output::write_scan`]): a failed scan leaves no `scan.ply`.
+/// Removes an earlier run's outputs from `dir` ([`output::remove_stale`]),
+/// runs [`run_sim`] and, only when it succeeded, writes the result into
+/// `dir` ([`output::write_scan`]): a failed scan leaves no `scan.ply` or
+/// `report.json`, neither its own nor an older one.
 pub fn scan_to_dir(
     config: &ScanConfig,
     dir: &std::path::Path,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<crate::io::report::ScanReport, ScanError> {
+    output::remove_stale(dir)?;
     let result = run_sim(config, progress)?;
     Ok(output::write_scan(dir, &result)?)
 }
@@ -242,6 +260,9 @@ pub struct HeadTruth {
     pub error_m: Raster<f32>,
     /// Per-pixel accuracy.
     pub accuracy: PixelAccuracy,
+    /// Per-pixel accuracy on the overlap: pixels whose surface point both
+    /// projectors light (the twin's truth), where the modes differ.
+    pub overlap: metrics::MaskedAccuracy,
     /// Point-to-plane RMSE against the true surface, metres (the head's
     /// cloud moved into head A's frame by the TRUE pose: the head alone).
     pub plane_rmse_m: f64,
@@ -330,7 +351,16 @@ pub fn run_sim(
         camera: config.camera_px,
         projector: config.projector_px,
     };
-    let (scene, rig) = built_in(&config.scene, &detail)?;
+    if let Some(gamma) = config
+        .precompensate_gamma
+        .filter(|g| !(g.is_finite() && *g > 0.0))
+    {
+        return Err(ScanError::BadGamma { gamma });
+    }
+    let (scene, mut rig) = built_in(&config.scene, &detail)?;
+    for p in &mut rig.projectors {
+        p.gamma = config.sim_projector_gamma;
+    }
     if rig.cameras.len() != 2 || rig.projectors.len() != 2 {
         return Err(ScanError::NotDualHead {
             scene: config.scene.clone(),

@@ -4,6 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use super::{Mode, ScanResult};
+use crate::io::cloud_render::{render_cloud, splat_radius_for, CloudView};
+use crate::io::images::save_rgb_png;
 use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
@@ -22,6 +24,14 @@ pub enum OutputError {
         /// Why.
         source: std::io::Error,
     },
+    /// An earlier run's output could not be removed.
+    #[error("removing the earlier run's {path}: {source}")]
+    Stale {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
     /// A picture.
     #[error(transparent)]
     Image(#[from] ImageError),
@@ -31,6 +41,35 @@ pub enum OutputError {
     /// The report.
     #[error(transparent)]
     Report(#[from] ReportError),
+}
+
+/// Every file [`write_scan`] writes into its folder.
+pub fn output_files() -> Vec<String> {
+    let mut files: Vec<String> = ["scan.ply", "report.json", "head_a.ply", "head_b.ply"]
+        .map(String::from)
+        .to_vec();
+    for kind in ["camera", "phase", "depth", "error"] {
+        for head in ["a", "b"] {
+            files.push(format!("{kind}_{head}.png"));
+        }
+    }
+    files.extend(CLOUD_VIEWS.map(|(name, ..)| format!("cloud_{name}.png")));
+    files
+}
+
+/// Removes an earlier run's outputs ([`output_files`], nothing else) from
+/// `dir`, so a scan that fails leaves no old `scan.ply` or `report.json`
+/// that could be read as its result. A missing folder or file is fine.
+pub fn remove_stale(dir: &Path) -> Result<(), OutputError> {
+    for name in output_files() {
+        let path = dir.join(name);
+        match std::fs::remove_file(&path) {
+            Ok(()) => tracing::info!(path = %path.display(), "removed an earlier run's output"),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(source) => return Err(OutputError::Stale { path, source }),
+        }
+    }
+    Ok(())
 }
 
 /// The report of a finished scan.
@@ -56,7 +95,8 @@ pub fn report(scan: &ScanResult) -> ScanReport {
             "rmse_um per head: each valid pixel's point vs the true point of that pixel; \
             plane_rmse_um and fused.rmse_um: each point vs the tangent plane of its nearest true surface sample; \
             coverage: fraction of the measurable object surface (pixels of either camera seeing the object, \
-            all scene objects but the background wall, lit by that camera's own projector) with a cloud point within 1 mm"
+            all scene objects but the background wall, lit by that camera's own projector) with a cloud point within 1 mm; \
+            overlap_rmse_um: rmse_um over the pixels whose surface point both projectors light (twin truth)"
             .into()
         },
         surface_samples: scan.surface_samples,
@@ -76,6 +116,9 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                     plane_rmse_um: t.map(|t| t.plane_rmse_m * um),
                     coverage: t.map(|t| t.coverage),
                     own_pixel_coverage: t.map(|t| t.accuracy.own_coverage),
+                    overlap_pixels: t.map(|t| t.overlap.pixels),
+                    overlap_points: t.map(|t| t.overlap.points),
+                    overlap_rmse_um: t.map(|t| t.overlap.rmse_m * um),
                 }
             })
             .collect(),
@@ -107,8 +150,14 @@ pub fn report(scan: &ScanResult) -> ScanReport {
     }
 }
 
+/// The two views of the fused cloud's pictures (name, yaw, pitch in
+/// degrees, about head A's frame): nearly head A's line of sight, and from
+/// the right and above, where the relief shows.
+pub const CLOUD_VIEWS: [(&str, f64, f64); 2] = [("front", 0.0, 0.0), ("oblique", -35.0, 25.0)];
+
 /// Writes `dir/{camera,phase,depth,error}_{a,b}.png` (error: black = exact,
-/// white = 500 um or more; only with a ground truth), `head_a.ply`,
+/// white = 500 um or more; only with a ground truth), `cloud_{front,oblique}.png`
+/// (the fused cloud, Lambert-shaded from PCA normals), `head_a.ply`,
 /// `head_b.ply`, `report.json`, then `scan.ply`.
 pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError> {
     std::fs::create_dir_all(dir).map_err(|source| OutputError::Dir {
@@ -156,8 +205,71 @@ pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputErr
         }
         write_ply(&dir.join(format!("head_{tag}.ply")), &h.cloud_in_a)?;
     }
+    write_cloud_pictures(dir, &scan.fused.cloud, scan.config.camera_px)?;
     let report = report(scan);
     write_report(&dir.join("report.json"), &report)?;
     write_ply(&dir.join("scan.ply"), &scan.fused.cloud)?;
     Ok(report)
+}
+
+/// `cloud_{view}.png` for each of [`CLOUD_VIEWS`]: normals from the
+/// cloud, else estimated by PCA (12 neighbours; the renderer ignores their
+/// sign), else none (shaded by depth) when the cloud is too small for PCA.
+fn write_cloud_pictures(
+    dir: &Path,
+    cloud: &crate::point_cloud::PointCloud,
+    size_px: (u32, u32),
+) -> Result<(), OutputError> {
+    let estimated: Option<Vec<[f32; 3]>> = match &cloud.normals {
+        Some(_) => None,
+        None => crate::fusion::estimate_normals(
+            &super::clouds::points_f64(cloud),
+            12,
+            &nalgebra::Vector3::zeros(),
+        )
+        .ok()
+        .map(|ns| {
+            ns.iter()
+                .map(|n| [n.x as f32, n.y as f32, n.z as f32])
+                .collect()
+        }),
+    };
+    let normals = cloud.normals.as_deref().or(estimated.as_deref());
+    let splat = splat_radius_for(cloud.len(), size_px);
+    for (name, yaw_deg, pitch_deg) in CLOUD_VIEWS {
+        let picture = match CloudView::framing(&cloud.points_m, yaw_deg, pitch_deg, size_px) {
+            Some(view) => render_cloud(&cloud.points_m, normals, &view, splat),
+            None => Raster::filled(
+                size_px.0 as usize,
+                size_px.1 as usize,
+                crate::io::cloud_render::BACKGROUND,
+            ),
+        };
+        save_rgb_png(&dir.join(format!("cloud_{name}.png")), &picture)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_outputs_go_and_other_files_stay() {
+        let dir = std::env::temp_dir().join(format!("slscan-stale-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for name in ["scan.ply", "report.json", "cloud_front.png", "notes.txt"] {
+            std::fs::write(dir.join(name), b"old").unwrap();
+        }
+        remove_stale(&dir).unwrap();
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, ["notes.txt"]);
+        // Nothing there (or no folder at all) is fine.
+        remove_stale(&dir).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        remove_stale(&dir).unwrap();
+    }
 }

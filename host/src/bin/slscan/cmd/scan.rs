@@ -83,6 +83,14 @@ pub struct Args {
     /// the reconstruction's noise prediction and fringe-order checks).
     #[arg(long, default_value_t = 0.01)]
     noise_sigma: f32,
+    /// The simulated projectors' response: intensity = grey^gamma
+    /// (1 = DMD pattern mode; about 2.2 through a video input).
+    #[arg(long, default_value_t = 1.0)]
+    sim_projector_gamma: f64,
+    /// Pre-compensate the patterns for a projector response of this gamma
+    /// (send grey^(1/gamma)).
+    #[arg(long)]
+    precompensate_gamma: Option<f64>,
 }
 
 const HARDWARE_HELP: &str = "\
@@ -137,6 +145,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         config.mode = mode;
         config.camera_px = (args.width, args.height);
         config.seed = args.seed;
+        config.sim_projector_gamma = args.sim_projector_gamma;
+        config.precompensate_gamma = args.precompensate_gamma;
         if let Some(periods) = &args.periods {
             config.periods_px = periods.clone();
         }
@@ -260,6 +270,7 @@ fn hardware_config(
         .clone()
         .unwrap_or_else(|| default_periods_px(dmd.0));
     config.noise_sigma = args.noise_sigma;
+    config.precompensate_gamma = args.precompensate_gamma;
     Ok(config)
 }
 
@@ -278,6 +289,13 @@ fn print_summary(report: &ScanReport) {
                 .map_or("n/a".to_string(), |n| n.to_string()),
             f3(h.coverage)
         );
+        if let (Some(points), Some(pixels)) = (h.overlap_points, h.overlap_pixels) {
+            println!(
+                "head {} overlap (pixels lit by both projectors): {points} of {pixels} pixels reconstructed, RMSE {} um",
+                h.name,
+                f1(h.overlap_rmse_um)
+            );
+        }
     }
     let f = &report.fused;
     println!(
