@@ -364,6 +364,23 @@ fn check_accurate(result: &ScanResult) {
         );
     }
     let fused = result.fused.truth.as_ref().expect("measured");
+    for head in &result.heads {
+        let t = head.truth.as_ref().expect("measured");
+        eprintln!(
+            "{:?} head {}: RMSE {:.1} um (predicted {:.1} um), coverage {:.3}",
+            result.config.mode,
+            head.name,
+            t.accuracy.rmse_m * 1e6,
+            t.accuracy.predicted_rms_m * 1e6,
+            t.coverage
+        );
+    }
+    eprintln!(
+        "{:?} fused: RMSE {:.1} um, coverage {:.3}",
+        result.config.mode,
+        fused.plane_rmse_m * 1e6,
+        fused.coverage
+    );
     let best = result
         .heads
         .iter()
