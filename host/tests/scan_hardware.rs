@@ -576,6 +576,10 @@ fn slscan_scan_on_a_port_writes_clouds_and_a_report_without_truth() {
         let h = &report["heads"][head];
         assert!(h["points"].as_u64().unwrap() > 5_000, "{h}");
         assert!(h["rmse_um"].is_null() && h["coverage"].is_null(), "{h}");
+        // The noise prediction needs no truth: 12-bit sensor noise through
+        // the S = 64 three-pitch set, about 130 um at the part.
+        let predicted = h["predicted_rms_um"].as_f64().unwrap();
+        assert!(predicted > 50.0 && predicted < 300.0, "{h}");
     }
     let fused = &report["fused"];
     assert!(

@@ -272,7 +272,7 @@ fn print_summary(report: &ScanReport) {
             h.name,
             h.points,
             f1(h.rmse_um),
-            f1(h.predicted_rms_um),
+            f1(Some(h.predicted_rms_um)),
             f1(h.median_error_um),
             h.outliers_over_1mm
                 .map_or("n/a".to_string(), |n| n.to_string()),
