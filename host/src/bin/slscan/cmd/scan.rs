@@ -182,6 +182,9 @@ fn scan_hardware(
     let calibration = read_rig(calibration_path)
         .with_context(|| format!("reading the calibration {}", calibration_path.display()))?;
     let config = hardware_config(args, mode, &calibration)?;
+    // The board first: a missing port fails before any folder is made.
+    let board = SerialBoard::open(port, ClientConfig::default())
+        .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
     let cameras = FolderCamera::new(FolderCameraConfig {
         root: frames.to_owned(),
         heads: calibration
@@ -217,8 +220,6 @@ fn scan_hardware(
             PatternDelivery::Write
         },
     );
-    let board = SerialBoard::open(port, ClientConfig::default())
-        .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
     let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
     let source = format!("rig file {}", calibration_path.display());
     let result = scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?;
