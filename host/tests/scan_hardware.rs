@@ -16,6 +16,7 @@ use std::time::Duration;
 
 use hil_sim::board::{spawn_on_pty, SimBoardConfig, SimBoardHandle};
 use hil_sim::devices::Displayed;
+use hil_sim::faults::FaultPlan;
 use hil_sim::twin::scenes::{built_in, Detail};
 use hil_sim::twin::{Display, Exposure, Pattern, ProjectorTimeline, Shown, TwinRig};
 use rand::SeedableRng;
@@ -54,10 +55,14 @@ fn twin() -> &'static (Arc<TwinRig>, RigCalibration) {
     })
 }
 
-/// What the camera software gets wrong.
+/// What goes wrong: the sync board, or the camera software.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Fault {
     None,
+    /// The board stops answering at this board tick.
+    BoardVanishes {
+        at_tick: u64,
+    },
     /// Frame `index` of head `head` is never saved.
     Drop {
         head: usize,
@@ -302,7 +307,17 @@ fn with_vendor_tools<T>(
 ) -> (T, Folders) {
     let folders = folders(name);
     std::fs::create_dir_all(&folders.root).expect("temp folder");
-    let board = spawn_on_pty(SimBoardConfig::default()).expect("pty board");
+    let board_config = match fault {
+        Fault::BoardVanishes { at_tick } => SimBoardConfig {
+            seed: 1,
+            faults: FaultPlan {
+                vanish_at_tick: Some(at_tick),
+                ..FaultPlan::none()
+            },
+        },
+        _ => SimBoardConfig::default(),
+    };
+    let board = spawn_on_pty(board_config).expect("pty board");
     let port = board.path().expect("pty path").to_owned();
     let stop = AtomicBool::new(false);
     let out = std::thread::scope(|s| {
@@ -432,6 +447,22 @@ fn simultaneous_mode_is_refused_without_a_twin() {
     let err = result.expect_err("no overlap mask on hardware");
     assert!(matches!(err, ScanError::NoAliasMask), "{err:?}");
     assert!(err.to_string().contains("PLACEHOLDER"));
+    let _ = std::fs::remove_dir_all(&folders.root);
+}
+
+#[test]
+fn a_board_vanishing_mid_scan_is_a_link_error() {
+    // Head A's run starts at tick 170_000 and lasts 12 x 34 ms; the board
+    // vanishes about 100 ms in.
+    let fault = Fault::BoardVanishes {
+        at_tick: 170_000 + 17_000_000,
+    };
+    let (result, folders) = hardware_scan("vanish", Mode::Sequential, fault, false);
+    let err = result.expect_err("the board vanished");
+    assert!(
+        matches!(err, ScanError::Rig(RigError::Board(ref e)) if e.is_link_failure()),
+        "{err:?}"
+    );
     let _ = std::fs::remove_dir_all(&folders.root);
 }
 
