@@ -340,7 +340,8 @@ fn hardware_scan(
     // A missing frame is only known after the whole timeout; other faults
     // end the wait at once, so theirs only needs to outlast a slow machine.
     let timeout = match fault {
-        Fault::Drop { .. } => 5,
+        // Long enough for a slow, loaded CI machine to render the rest.
+        Fault::Drop { .. } => 10,
         _ => 30,
     };
     with_vendor_tools(name, fault, |port, folders| {
@@ -627,7 +628,7 @@ fn slscan_scan_on_a_port_writes_clouds_and_a_report_without_truth() {
 fn slscan_scan_with_a_missing_frame_fails_and_writes_no_scan() {
     let fault = Fault::Drop { head: 1, index: 0 };
     let (out, folders) = with_vendor_tools("cli-missing", fault, |port, folders| {
-        slscan_scan(port, folders, &["--frame-timeout-s", "5"])
+        slscan_scan(port, folders, &["--frame-timeout-s", "10"])
     });
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
