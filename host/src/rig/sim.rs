@@ -1,5 +1,5 @@
 //! The simulated rig: hil-sim's board served on a real pseudo-terminal, the
-//! host's serial [`BoardClient`] talking to it, and cameras rendered by the
+//! host's serial [`crate::board::BoardClient`] (via [`super::serial_board::SerialBoard`]) talking to it, and cameras rendered by the
 //! digital twin ([`TwinRig`]).
 //!
 //! A camera frame is rendered from the board's executed timeline, not from
