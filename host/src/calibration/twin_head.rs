@@ -3,7 +3,9 @@
 //! The twin's single-head rig (`scenes::single_head`) looks at the twin's 9x7-square
 //! checkerboard (`scenes::CHECKERBOARD`, 8x6 inner corners of 20 mm) held at `views`
 //! poses in front of a dim wall. Each view is a ray-cast render lit by the projector's
-//! white field, and, for the projector, x and y fringes (4 steps at three periods each)
+//! white field, whose pixels integrate 4x4 rays over their area (one ray per pixel
+//! would alias the square edges and bias the corners by about 0.16 px), and, for the
+//! projector, x and y fringes (4 steps at three periods each, one ray per pixel)
 //! decoded and heterodyne-unwrapped by slscan's own phase and unwrap code into the
 //! absolute phase maps `calibrate_head` expects. The truth is the twin's device set,
 //! converted by [`super::from_twin`].
