@@ -492,11 +492,12 @@ fn head_calibration_from_twin_checkerboard_views_recovers_the_true_devices() {
     // lengths within 0.05 %, principal points within 0.3 px, view poses within 0.02 deg
     // / 0.35 mm, camera -> projector within 0.02 deg / 0.07 mm. One aliased ray per
     // pixel (`pixel_samples = 1`) gives 0.16 px corners, fx -0.43 % and cy +6 px: it
-    // fails these bounds.
+    // fails these bounds. Projector reprojection 0.046 px; 0.091 px with plain
+    // least-squares local homographies (no outlier rejection), which fails too.
     assert_eq!(stage.names.len(), captures.len(), "every view detected");
     assert!(corner_rms < 0.06, "corners {corner_rms} px");
     assert!(
-        stage.calibration.rms_px < 0.06 && cal.projector.rms_px < 0.1,
+        stage.calibration.rms_px < 0.06 && cal.projector.rms_px < 0.07,
         "reprojection RMS camera {} px, projector {} px",
         stage.calibration.rms_px,
         cal.projector.rms_px
