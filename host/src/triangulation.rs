@@ -2,8 +2,9 @@
 //! projector rays (both directions), with per-point predicted noise.
 //!
 //! [`Triangulator::new`] does the expensive part once per camera: it undistorts every
-//! camera pixel into a world ray and expresses that ray in the projector frame. Per frame,
-//! a projector column `u` then costs a handful of multiply-adds:
+//! camera pixel (stored as normalised coordinates, 8 bytes a pixel, so the per-frame pass
+//! reads little). Per frame, a projector column `u` then costs a handful of multiply-adds
+//! ([`Triangulator::intersect_columns`] does a whole row, vectorised, in the camera frame):
 //!
 //! ```text
 //! camera ray  X(s) = C + s d                    (world, |d| = 1)

@@ -88,13 +88,13 @@ pub(super) fn compact_into(
 }
 
 /// `v` with `len` elements (all overwritten by the caller): resized in place when its
-/// allocation is large enough, else a fresh zeroed one (calloc: no write pass).
+/// allocation is large enough, else a fresh one on huge pages.
 fn sized<T: Clone + Default>(mut v: Vec<T>, len: usize) -> Vec<T> {
     if v.capacity() >= len {
         v.resize(len, T::default());
         v
     } else {
         drop(v);
-        vec![T::default(); len]
+        crate::huge_pages::filled_vec(len, T::default())
     }
 }

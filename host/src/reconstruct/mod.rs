@@ -8,11 +8,14 @@
 //!   --(sigma: CRB phase noise -> projector px -> metres along the ray)--> quality
 //! ```
 //!
-//! [`Reconstructor::new`] does the set-up once per head (rays, shift tables, beat tree);
-//! [`Reconstructor::reconstruct`] runs all stages in one fused pass over the pixels
-//! (rayon over rows), so each frame sample is read once. [`Reconstructor::reconstruct_staged`]
-//! runs the same stages as separate passes and times them, for the bench's breakdown;
-//! both give identical results (tested).
+//! [`Reconstructor::new`] does the set-up once per head (undistorted pixel coordinates,
+//! shift tables, beat tree); [`Reconstructor::reconstruct`] runs all stages in one fused
+//! pass (rayon over rows; per row decode -> heterodyne -> triangulation as whole-row loops
+//! that vectorise, see `rows.rs`), so each frame sample is read once. Frames may be
+//! `u8`/`u16` as cameras deliver them, or `f32` ([`crate::phase::Sample`]).
+//! [`Reconstructor::reconstruct_into`] reuses a previous result's buffers.
+//! [`Reconstructor::reconstruct_staged`] runs the same row functions as separate passes
+//! and times them, for the bench's breakdown; both give identical results (tested).
 
 mod cloud;
 mod rows;
@@ -360,8 +363,12 @@ impl Reconstructor {
         let scale = self.sample_scale::<T>();
         let pixels = &mut out.pixels;
         (pixels.width, pixels.height) = (width, height);
-        // Every element is overwritten below; resize only allocates when it grows.
-        pixels.data.resize(width * height, EMPTY);
+        // Every element is overwritten below; memory is only allocated when it grows.
+        if pixels.data.capacity() < width * height {
+            pixels.data = crate::huge_pages::filled_vec(width * height, EMPTY);
+        } else {
+            pixels.data.resize(width * height, EMPTY);
+        }
         let counts: Vec<usize> = pixels
             .data
             .par_chunks_mut(width)
