@@ -157,6 +157,9 @@ impl Triangulator {
     /// `b = (R_pc m).z` and `x_n = (u - cx) / fx`, the depth is
     /// `Z = (x_n q.z - q.x) / (a - x_n b)` and the point `C + Z R_c^T m`. A distorted
     /// projector goes pixel by pixel through [`Triangulator::intersect`].
+    ///
+    /// # Panics
+    /// If the run extends past the last camera pixel (a caller bug, not bad data).
     pub fn intersect_columns(&self, first_index: usize, column_px: &[f32], out: &mut ColumnHits) {
         let len = column_px.len();
         out.resize(len);

@@ -179,6 +179,9 @@ impl Heterodyne {
     ///
     /// Same operations in the same order as `unwrap_pixel`, but branch-free over tiles of
     /// pixels with the level loops outside, so the pixel loops vectorise.
+    ///
+    /// # Panics
+    /// If `wrapped.len()` is not `periods x absolute.len()` (a caller bug, not bad data).
     pub fn unwrap_row(&self, wrapped: &[f32], absolute: &mut [f32]) {
         const TILE: usize = 64;
         let k = self.periods_px.len();
