@@ -33,6 +33,22 @@ pub struct HeadReport {
     pub overlap_points: usize,
     /// `rmse_um` over those points only, micrometres (null when none).
     pub overlap_rmse_um: f64,
+    /// Simultaneous mode: the pixels masked as aliased (measured from flat
+    /// fields) against the twin's true overlap; null in the other modes.
+    pub aliased_mask: Option<AliasedMaskReport>,
+}
+
+/// The measured aliased-pixel mask of one camera against the truth.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct AliasedMaskReport {
+    /// Pixels the flat fields show lit by both projectors.
+    pub measured_overlap_pixels: usize,
+    /// Pixels the twin's truth says both projectors light.
+    pub true_overlap_pixels: usize,
+    /// Intersection over union of the two.
+    pub iou: f64,
+    /// Share of the true overlap that was masked.
+    pub recall: f64,
 }
 
 /// The ICP refinement of the calibrated head-to-head pose.
@@ -149,6 +165,7 @@ mod tests {
             overlap_pixels: 0,
             overlap_points: 0,
             overlap_rmse_um: f64::NAN,
+            aliased_mask: None,
         };
         let report = ScanReport {
             scene: "x".into(),

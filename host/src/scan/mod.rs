@@ -14,6 +14,7 @@
 //! in memory; [`output::write_scan`] writes it (every file via a temporary
 //! and a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
 
+pub mod aliasing;
 pub mod capture;
 mod clouds;
 mod fuse;
@@ -162,6 +163,15 @@ pub enum ScanError {
         /// The value given.
         gamma: f64,
     },
+    /// A camera delivered another number of flat-field frames than the
+    /// plan's three.
+    #[error("head {head}: {frames} flat-field frames, expected 3")]
+    FlatFields {
+        /// Head name.
+        head: &'static str,
+        /// Frames found after the fringes.
+        frames: usize,
+    },
     /// The plan could not be built.
     #[error("plan")]
     Plan(#[from] plan::PlanBuildError),
@@ -232,6 +242,9 @@ pub struct HeadResult {
     /// Per-pixel accuracy on the overlap: pixels whose surface point both
     /// projectors light (the twin's truth), where the modes differ.
     pub overlap: metrics::MaskedAccuracy,
+    /// Simultaneous mode: the flat-field aliased mask against the twin's
+    /// true overlap (`None` in the other modes).
+    pub aliased_mask: Option<aliasing::MaskAgreement>,
     /// Point-to-plane RMSE against the true surface, metres.
     pub plane_rmse_m: f64,
     /// Coverage of the measurable object surface.
@@ -348,9 +361,7 @@ pub fn run_sim(
     let mut captured = capture::capture(&mut sim, config, progress)?;
     clock.lap("capture");
     let mut warnings = Vec::new();
-    if config.mode == Mode::Simultaneous {
-        capture::mask_aliased_overlap(&mut captured, &twin, &mut warnings)?;
-    }
+    let aliased_masks = capture::mask_measured_overlap(&mut captured, &mut warnings);
 
     // Reconstruct each head in its own frame.
     let mut recons = Vec::new();
@@ -423,6 +434,9 @@ pub fn run_sim(
         let head_from_world = twin_truth::head_from_world(twin.rig(), h);
         let accuracy = metrics::pixel_accuracy(&recon, g, &head_from_world, h, &is_object);
         let overlap = metrics::masked_accuracy(&recon, g, &head_from_world, &g.overlap);
+        let aliased_mask = aliased_masks
+            .get(h)
+            .map(|m| aliasing::agreement(m, &g.overlap));
         let a_from_head = a_from_world * head_from_world.inverse();
         let cloud_in_a = transformed(&recon.cloud, &a_from_head);
         let pts = points_f64(&cloud_in_a);
@@ -437,6 +451,7 @@ pub fn run_sim(
             error_m,
             accuracy,
             overlap,
+            aliased_mask,
         });
         progress(Progress::Step);
     }

@@ -9,7 +9,7 @@ use crate::io::images::save_rgb_png;
 use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
-    write_report, FusedReport, HeadReport, IcpReport, ReportError, ScanReport,
+    write_report, AliasedMaskReport, FusedReport, HeadReport, IcpReport, ReportError, ScanReport,
 };
 use crate::raster::Raster;
 
@@ -112,6 +112,12 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                 overlap_pixels: h.overlap.pixels,
                 overlap_points: h.overlap.points,
                 overlap_rmse_um: h.overlap.rmse_m * um,
+                aliased_mask: h.aliased_mask.map(|a| AliasedMaskReport {
+                    measured_overlap_pixels: a.measured,
+                    true_overlap_pixels: a.truth,
+                    iou: a.iou,
+                    recall: a.recall,
+                }),
             })
             .collect(),
         fused: FusedReport {

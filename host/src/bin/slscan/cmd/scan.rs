@@ -52,7 +52,7 @@ pub struct Args {
 enum ModeArg {
     /// Head A alone, then head B alone.
     Sequential,
-    /// Both heads at once, identical sequences; aliased overlap masked out (PLACEHOLDER for a de-aliaser).
+    /// Both heads at once, identical sequences; pixels the flat fields show lit by both projectors masked out (no de-aliaser yet).
     Simultaneous,
     /// Both at once, N = 8, head A on temporal bin 1, head B on bin 2, demultiplexed per pixel.
     SimultaneousMultiplexed,
@@ -115,6 +115,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "head {} overlap (pixels lit by both projectors): {} of {} pixels reconstructed, RMSE {:.1} um",
             h.name, h.overlap_points, h.overlap_pixels, h.overlap_rmse_um
         );
+        if let Some(m) = &h.aliased_mask {
+            println!(
+                "head {} overlap measured by flat fields: {} px lit by both projectors, true overlap {} px, IoU {:.4}, recall {:.4}",
+                h.name, m.measured_overlap_pixels, m.true_overlap_pixels, m.iou, m.recall
+            );
+        }
     }
     let f = &report.fused;
     println!(
