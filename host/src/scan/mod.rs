@@ -1,23 +1,28 @@
 //! A whole scan: plan -> capture -> reconstruct -> fuse -> measure.
 //!
 //! ```text
-//! twin scene + rig ──> RigCalibration (the twin's truth, per head frame)
+//! RigCalibration (sim: the twin's truth; hardware: a rig file)
 //! per head (sequential mode: head A alone, then head B alone):
 //!   fringe set ──Projector::load_sequence──> DMD table
 //!   plan (one pattern per exposure) ──Board::run_plan──> board-clock timeline
 //!   ──Camera::take_frames──> one frame per trigger ──Reconstructor──> cloud
 //! clouds A, B ──fusion::fuse_heads (ICP from the calibrated B->A)──> fused cloud
-//! every cloud ──metrics (twin ground truth)──> RMSE, coverage
+//! every cloud ──metrics (twin ground truth, when there is one)──> RMSE, coverage
 //! ```
 //!
-//! [`run_sim`] does it all on the simulated rig and returns a [`ScanResult`]
-//! in memory; [`output::write_scan`] writes it (every file via a temporary
-//! and a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
+//! [`run_on_rig`] does it on any rig ([`crate::rig`]'s traits) with a given
+//! calibration and an optional ground truth; [`run_sim`] builds the
+//! simulated rig and the twin's truth around it; on hardware the caller
+//! builds a [`crate::rig::hardware::HardwareRig`] and passes no truth (the
+//! report's truth figures are then null). Either returns a [`ScanResult`] in
+//! memory; [`output::write_scan`] writes it (every file via a temporary and
+//! a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
 
 pub mod aliasing;
 pub mod capture;
 mod clouds;
 mod fuse;
+pub mod measure;
 pub mod metrics;
 pub mod output;
 pub mod plan;
@@ -29,18 +34,20 @@ use std::time::Instant;
 use hil_sim::board::SimBoardConfig;
 use hil_sim::twin::scenes::{built_in, Detail};
 use hil_sim::twin::{SensorModel, TwinError, TwinRig};
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
 use crate::board::ClientConfig;
+use crate::calibration::{Pose, RigCalibration};
 use crate::fusion::{FusionError, IcpResult};
 use crate::patterns::three_pitch_periods_px;
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
 use crate::rig::sim::{SimRig, SimRigConfig};
-use crate::rig::RigError;
-use clouds::{from_fusion, points_f64, transformed};
-use metrics::{PixelAccuracy, Sample};
+use crate::rig::{Board, Camera, Projector, RigError};
+use clouds::{from_fusion, transformed};
+pub use measure::GroundTruth;
+use metrics::PixelAccuracy;
 
 /// How the two heads share time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -55,7 +62,8 @@ pub enum Mode {
     SimultaneousMultiplexed,
 }
 
-/// Everything a simulated scan needs.
+/// Everything a scan needs besides the rig and its calibration (the
+/// scene, seed and board settings serve the simulated rig only).
 #[derive(Clone, Debug)]
 pub struct ScanConfig {
     /// Built-in twin scene with two heads (e.g. `large-part`).
@@ -70,6 +78,9 @@ pub struct ScanConfig {
     pub periods_px: Vec<f64>,
     /// Phase steps per period.
     pub steps: usize,
+    /// Camera noise at half scale, frame units (what the reconstruction's
+    /// noise prediction and order checks assume).
+    pub noise_sigma: f32,
     /// Seed of device jitter and sensor noise.
     pub seed: u64,
     /// Simulated board faults (for failure tests).
@@ -97,6 +108,7 @@ impl ScanConfig {
             projector_px: (1280, 800),
             periods_px: default_periods_px(1280),
             steps: 4,
+            noise_sigma: noise_sigma(&sim_sensor()),
             seed: 1,
             board: SimBoardConfig::default(),
             client: ClientConfig {
@@ -149,6 +161,22 @@ pub enum ScanError {
         /// Projectors in its rig.
         projectors: usize,
     },
+    /// A dual-head scan needs a calibration of two heads and the pose
+    /// between them.
+    #[error("the calibration has {heads} head(s) (or no head_to_head pose); a dual-head scan needs 2 heads and head_to_head")]
+    NotDualHeadCalibration {
+        /// Heads in the calibration.
+        heads: usize,
+    },
+    /// A camera delivered another number of flat-field frames than the
+    /// plan's three.
+    #[error("head {head}: {frames} flat-field frames, expected 3")]
+    FlatFields {
+        /// Head name.
+        head: &'static str,
+        /// Frames found after the fringes.
+        frames: usize,
+    },
     /// Demultiplexing a camera's frames failed.
     #[error("demultiplex head {head}")]
     Demultiplex {
@@ -162,15 +190,6 @@ pub enum ScanError {
     BadGamma {
         /// The value given.
         gamma: f64,
-    },
-    /// A camera delivered another number of flat-field frames than the
-    /// plan's three.
-    #[error("head {head}: {frames} flat-field frames, expected 3")]
-    FlatFields {
-        /// Head name.
-        head: &'static str,
-        /// Frames found after the fringes.
-        frames: usize,
     },
     /// The plan could not be built.
     #[error("plan")]
@@ -233,8 +252,16 @@ pub struct HeadResult {
     pub first_frame: Raster<f32>,
     /// Per-pixel reconstruction, head frame.
     pub reconstruction: Reconstruction,
-    /// The cloud moved into head A's frame (the fused frame).
+    /// The cloud moved into head A's frame (the fused frame) by the B->A
+    /// pose fusion used, so it lines up with the fused cloud.
     pub cloud_in_a: PointCloud,
+    /// Figures against the ground truth (`None` on hardware).
+    pub truth: Option<HeadTruth>,
+}
+
+/// One head's figures against the ground truth.
+#[derive(Clone, Debug)]
+pub struct HeadTruth {
     /// Per-pixel error map against the truth, metres (NaN where not valid).
     pub error_m: Raster<f32>,
     /// Per-pixel accuracy.
@@ -242,10 +269,11 @@ pub struct HeadResult {
     /// Per-pixel accuracy on the overlap: pixels whose surface point both
     /// projectors light (the twin's truth), where the modes differ.
     pub overlap: metrics::MaskedAccuracy,
-    /// Simultaneous mode: the flat-field aliased mask against the twin's
-    /// true overlap (`None` in the other modes).
+    /// Simultaneous mode: the overlap the flat fields measured against the
+    /// twin's true overlap (`None` in the other modes).
     pub aliased_mask: Option<aliasing::MaskAgreement>,
-    /// Point-to-plane RMSE against the true surface, metres.
+    /// Point-to-plane RMSE against the true surface, metres (the head's
+    /// cloud moved into head A's frame by the TRUE pose: the head alone).
     pub plane_rmse_m: f64,
     /// Coverage of the measurable object surface.
     pub coverage: f64,
@@ -259,6 +287,13 @@ pub struct FusedResult {
     /// Registration of B onto A (`None` when the heads share no surface,
     /// as in simultaneous mode with the aliased overlap masked out).
     pub icp: Option<IcpResult>,
+    /// Figures against the ground truth (`None` on hardware).
+    pub truth: Option<FusedTruth>,
+}
+
+/// The fused cloud's figures against the ground truth.
+#[derive(Clone, Debug)]
+pub struct FusedTruth {
     /// Point-to-plane RMSE against the true surface, metres.
     pub plane_rmse_m: f64,
     /// Coverage of the measurable object surface.
@@ -273,12 +308,14 @@ pub struct FusedResult {
 pub struct ScanResult {
     /// The configuration it ran with.
     pub config: ScanConfig,
+    /// Where the calibration came from (for the report).
+    pub calibration_source: String,
     /// Heads A and B.
     pub heads: Vec<HeadResult>,
     /// The fused cloud.
     pub fused: FusedResult,
-    /// Samples of the measurable object surface.
-    pub surface_samples: usize,
+    /// Samples of the measurable object surface (`None` without a truth).
+    pub surface_samples: Option<usize>,
     /// Wall-clock time per stage, milliseconds, in order.
     pub timings_ms: Vec<(&'static str, f64)>,
     /// Loud caveats of this run (masked aliased pixels, ...).
@@ -291,6 +328,13 @@ struct Clock {
 }
 
 impl Clock {
+    fn start() -> Self {
+        Clock {
+            last: Instant::now(),
+            timings: Vec::new(),
+        }
+    }
+
     fn lap(&mut self, name: &'static str) {
         let now = Instant::now();
         let ms = (now - self.last).as_secs_f64() * 1e3;
@@ -300,15 +344,18 @@ impl Clock {
     }
 }
 
-/// Runs a dual-head scan on the simulated rig (board on a pty, twin cameras).
+/// What a calibration says the simulated scan reconstructs with.
+const TWIN_CALIBRATION: &str =
+    "the digital twin's TRUE device models (not an estimated calibration)";
+
+/// Runs a dual-head scan on the simulated rig (board on a pty, twin
+/// cameras), reconstructing with the twin's true calibration and measuring
+/// against the twin's ground truth.
 pub fn run_sim(
     config: &ScanConfig,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<ScanResult, ScanError> {
-    let mut clock = Clock {
-        last: Instant::now(),
-        timings: Vec::new(),
-    };
+    let mut clock = Clock::start();
     let detail = Detail {
         camera: config.camera_px,
         projector: config.projector_px,
@@ -330,14 +377,11 @@ pub fn run_sim(
             projectors: rig.projectors.len(),
         });
     }
-    let is_object = metrics::object_ids(&scene);
     let twin = Arc::new(TwinRig::new(scene, rig)?);
     let calibration = twin_truth::twin_calibration(twin.rig(), 2);
     tracing::warn!(
         "calibration: the digital twin's TRUE device models, not an estimated calibration"
     );
-    let sensor = sim_sensor();
-    let noise_sigma = noise_sigma(&sensor);
     progress(Progress::Stage {
         name: "ray-cast cameras",
         total: 2,
@@ -352,13 +396,45 @@ pub fn run_sim(
         SimRigConfig {
             board: config.board.clone(),
             client: config.client,
-            sensor,
+            sensor: sim_sensor(),
             noise_seed: config.seed,
         },
     )?;
     clock.lap("setup");
+    let truth = GroundTruth::new(twin);
+    let mut result = run_on_rig(
+        &mut sim,
+        &calibration,
+        TWIN_CALIBRATION,
+        Some(&truth),
+        config,
+        progress,
+    )?;
+    result.timings_ms.splice(0..0, clock.timings);
+    Ok(result)
+}
 
-    let mut captured = capture::capture(&mut sim, config, progress)?;
+/// Runs a dual-head scan on any rig: capture -> reconstruct (with
+/// `calibration`, described for the report by `calibration_source`) ->
+/// fuse, and, when a ground `truth` exists (the twin), measure against it.
+/// Without one (hardware) the report's truth figures are null.
+/// Simultaneous mode measures its aliased overlap from flat fields, so it
+/// runs on hardware too.
+pub fn run_on_rig<R: Board + Projector + Camera>(
+    rig: &mut R,
+    calibration: &RigCalibration,
+    calibration_source: &str,
+    truth: Option<&GroundTruth>,
+    config: &ScanConfig,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<ScanResult, ScanError> {
+    let mut clock = Clock::start();
+    let (Some(a_to_b), 2) = (calibration.head_to_head, calibration.heads.len()) else {
+        return Err(ScanError::NotDualHeadCalibration {
+            heads: calibration.heads.len(),
+        });
+    };
+    let mut captured = capture::capture(rig, config, progress)?;
     clock.lap("capture");
     let mut warnings = Vec::new();
     let aliased_masks = capture::mask_measured_overlap(&mut captured, &mut warnings);
@@ -373,7 +449,7 @@ pub fn run_sim(
         let head_name = twin_truth::HEAD_NAMES[h];
         let mut rc_config = ReconstructConfig::new(config.periods_px.clone());
         rc_config.steps = captured.steps;
-        rc_config.noise_sigma = noise_sigma * captured.noise_factor;
+        rc_config.noise_sigma = config.noise_sigma * captured.noise_factor;
         let rc = Reconstructor::from_head(&calibration.heads[h], rc_config).map_err(|source| {
             ScanError::Reconstruct {
                 head: head_name,
@@ -399,8 +475,7 @@ pub fn run_sim(
         name: "fuse",
         total: 1,
     });
-    let b_from_a = twin_truth::b_from_a(twin.rig());
-    let a_from_b_calibrated: Isometry3<f64> = b_from_a.inverse();
+    let a_from_b_calibrated = isometry_from_pose(&a_to_b).inverse();
     let fused = fuse::fuse(
         &recons[0].cloud,
         &recons[1].cloud,
@@ -408,111 +483,73 @@ pub fn run_sim(
         config,
         &mut warnings,
     )?;
+    let a_from_b_used = fused
+        .icp
+        .as_ref()
+        .map_or(a_from_b_calibrated, |icp| icp.transform);
+    let fused_cloud = from_fusion(&fused.cloud);
     progress(Progress::Step);
     progress(Progress::Done);
     clock.lap("fuse");
 
-    // Measure against the truth, everything in head A's frame.
-    progress(Progress::Stage {
-        name: "measure",
-        total: 3,
-    });
-    let a_from_world = twin_truth::head_from_world(twin.rig(), 0);
-    let mut surface: Vec<Sample> = Vec::new();
-    let mut all_surface: Vec<Sample> = Vec::new();
-    let geometries: Vec<_> = (0..2).map(|h| twin.renderer(h)).collect::<Result<_, _>>()?;
-    for (h, g) in geometries.iter().enumerate() {
-        let g = g.geometry();
-        let own = metrics::own_object_pixels(g, h, &is_object);
-        surface.extend(metrics::samples(g, &own, &a_from_world));
-        let any: Vec<bool> = g.point_m.iter().map(|p| p[0].is_finite()).collect();
-        all_surface.extend(metrics::samples(g, &any, &a_from_world));
-    }
-    let mut heads = Vec::new();
-    for (h, recon) in recons.into_iter().enumerate() {
-        let g = geometries[h].geometry();
-        let head_from_world = twin_truth::head_from_world(twin.rig(), h);
-        let accuracy = metrics::pixel_accuracy(&recon, g, &head_from_world, h, &is_object);
-        let overlap = metrics::masked_accuracy(&recon, g, &head_from_world, &g.overlap);
-        let aliased_mask = aliased_masks
-            .get(h)
-            .map(|m| aliasing::agreement(m, &g.overlap));
-        let a_from_head = a_from_world * head_from_world.inverse();
-        let cloud_in_a = transformed(&recon.cloud, &a_from_head);
-        let pts = points_f64(&cloud_in_a);
-        let error_m = error_map(&recon, g, &head_from_world);
-        heads.push(HeadResult {
-            name: twin_truth::HEAD_NAMES[h],
-            first_frame: captured.raw[h][0].clone(),
-            plane_rmse_m: metrics::point_to_plane_rmse(&pts, &all_surface)?,
-            coverage: metrics::coverage(&pts, &surface)?,
-            reconstruction: recon,
-            cloud_in_a,
-            error_m,
-            accuracy,
-            overlap,
-            aliased_mask,
-        });
-        progress(Progress::Step);
-    }
-    let fused_cloud = from_fusion(&fused.cloud);
-    let fused_pts = points_f64(&fused_cloud);
-    let true_a_from_b = b_from_a.inverse();
-    let used = fused
-        .icp
-        .as_ref()
-        .map_or(a_from_b_calibrated, |icp| icp.transform);
-    let diff = used * true_a_from_b.inverse();
-    let fused = FusedResult {
-        plane_rmse_m: metrics::point_to_plane_rmse(&fused_pts, &all_surface)?,
-        coverage: metrics::coverage(&fused_pts, &surface)?,
-        cloud: fused_cloud,
-        icp: fused.icp,
-        residual_pose_error: (
-            diff.rotation.angle().to_degrees(),
-            diff.translation.vector.norm(),
-        ),
+    let measured = match truth {
+        Some(truth) => {
+            progress(Progress::Stage {
+                name: "measure",
+                total: 1,
+            });
+            let m = measure::measure(truth, &recons, &fused_cloud, &a_from_b_used, &aliased_masks)?;
+            progress(Progress::Step);
+            progress(Progress::Done);
+            clock.lap("measure");
+            Some(m)
+        }
+        None => None,
     };
-    progress(Progress::Step);
-    progress(Progress::Done);
-    clock.lap("measure");
+    let (mut head_truths, fused_truth, surface_samples) = match measured {
+        Some(m) => (
+            m.heads.into_iter().map(Some).collect(),
+            Some(m.fused),
+            Some(m.surface_samples),
+        ),
+        None => (vec![None, None], None, None),
+    };
+    let heads = recons
+        .into_iter()
+        .enumerate()
+        .map(|(h, recon)| {
+            let a_from_head = if h == 0 {
+                Isometry3::identity()
+            } else {
+                a_from_b_used
+            };
+            HeadResult {
+                name: twin_truth::HEAD_NAMES[h],
+                first_frame: captured.raw[h][0].clone(),
+                cloud_in_a: transformed(&recon.cloud, &a_from_head),
+                reconstruction: recon,
+                truth: head_truths[h].take(),
+            }
+        })
+        .collect();
     Ok(ScanResult {
         config: config.clone(),
+        calibration_source: calibration_source.to_string(),
         heads,
-        fused,
-        surface_samples: surface.len(),
+        fused: FusedResult {
+            cloud: fused_cloud,
+            icp: fused.icp,
+            truth: fused_truth,
+        },
+        surface_samples,
         timings_ms: clock.timings,
         warnings,
     })
 }
 
-/// |reconstructed - true| per pixel, metres (NaN where either is missing).
-fn error_map(
-    recon: &Reconstruction,
-    truth: &hil_sim::twin::CameraGeometry,
-    head_from_world: &Isometry3<f64>,
-) -> Raster<f32> {
-    let data = recon
-        .pixels
-        .data
-        .iter()
-        .zip(&truth.point_m)
-        .map(|(px, t)| {
-            if !(px.point_m[0].is_finite() && t[0].is_finite()) {
-                return f32::NAN;
-            }
-            let tt = head_from_world * nalgebra::Point3::new(t[0] as f64, t[1] as f64, t[2] as f64);
-            let p = Vector3::new(
-                px.point_m[0] as f64,
-                px.point_m[1] as f64,
-                px.point_m[2] as f64,
-            );
-            (p - tt.coords).norm() as f32
-        })
-        .collect();
-    Raster {
-        width: recon.pixels.width,
-        height: recon.pixels.height,
-        data,
-    }
+/// A calibration pose as an isometry (the rotation re-orthonormalised
+/// through a quaternion).
+fn isometry_from_pose(pose: &Pose) -> Isometry3<f64> {
+    let rotation = UnitQuaternion::from_matrix(&pose.rotation);
+    Isometry3::from_parts(Translation3::from(pose.translation_m), rotation)
 }

@@ -88,42 +88,50 @@ pub fn report(scan: &ScanResult) -> ScanReport {
         projector_px: c.projector_px,
         periods_px: c.periods_px.clone(),
         steps: c.steps,
-        calibration: "the digital twin's TRUE device models (not an estimated calibration)".into(),
-        truth_note: "rmse_um per head: each valid pixel's point vs the true point of that pixel; \
+        calibration: scan.calibration_source.clone(),
+        truth_note: if scan.surface_samples.is_none() {
+            "no ground truth (hardware): rmse, coverage and pose-error figures are null".into()
+        } else {
+            "rmse_um per head: each valid pixel's point vs the true point of that pixel; \
             plane_rmse_um and fused.rmse_um: each point vs the tangent plane of its nearest true surface sample; \
             coverage: fraction of the measurable object surface (pixels of either camera seeing the object, \
             all scene objects but the background wall, lit by that camera's own projector) with a cloud point within 1 mm; \
             overlap_rmse_um: rmse_um over the pixels whose surface point both projectors light (twin truth)"
-            .into(),
+            .into()
+        },
         surface_samples: scan.surface_samples,
         heads: scan
             .heads
             .iter()
-            .map(|h| HeadReport {
-                name: h.name.into(),
-                points: h.accuracy.points,
-                rmse_um: h.accuracy.rmse_m * um,
-                median_error_um: h.accuracy.median_m * um,
-                predicted_rms_um: h.accuracy.predicted_rms_m * um,
-                outliers_over_1mm: h.accuracy.outliers,
-                plane_rmse_um: h.plane_rmse_m * um,
-                coverage: h.coverage,
-                own_pixel_coverage: h.accuracy.own_coverage,
-                overlap_pixels: h.overlap.pixels,
-                overlap_points: h.overlap.points,
-                overlap_rmse_um: h.overlap.rmse_m * um,
-                aliased_mask: h.aliased_mask.map(|a| AliasedMaskReport {
-                    measured_overlap_pixels: a.measured,
-                    true_overlap_pixels: a.truth,
-                    iou: a.iou,
-                    recall: a.recall,
-                }),
+            .map(|h| {
+                let t = h.truth.as_ref();
+                HeadReport {
+                    name: h.name.into(),
+                    // Without a truth: every point of the cloud.
+                    points: t.map_or(h.reconstruction.cloud.len(), |t| t.accuracy.points),
+                    rmse_um: t.map(|t| t.accuracy.rmse_m * um),
+                    median_error_um: t.map(|t| t.accuracy.median_m * um),
+                    predicted_rms_um: t.map(|t| t.accuracy.predicted_rms_m * um),
+                    outliers_over_1mm: t.map(|t| t.accuracy.outliers),
+                    plane_rmse_um: t.map(|t| t.plane_rmse_m * um),
+                    coverage: t.map(|t| t.coverage),
+                    own_pixel_coverage: t.map(|t| t.accuracy.own_coverage),
+                    overlap_pixels: t.map(|t| t.overlap.pixels),
+                    overlap_points: t.map(|t| t.overlap.points),
+                    overlap_rmse_um: t.map(|t| t.overlap.rmse_m * um),
+                    aliased_mask: t.and_then(|t| t.aliased_mask).map(|a| AliasedMaskReport {
+                        measured_overlap_pixels: a.measured,
+                        true_overlap_pixels: a.truth,
+                        iou: a.iou,
+                        recall: a.recall,
+                    }),
+                }
             })
             .collect(),
         fused: FusedReport {
             points: scan.fused.cloud.len(),
-            rmse_um: scan.fused.plane_rmse_m * um,
-            coverage: scan.fused.coverage,
+            rmse_um: scan.fused.truth.as_ref().map(|t| t.plane_rmse_m * um),
+            coverage: scan.fused.truth.as_ref().map(|t| t.coverage),
             icp: scan.fused.icp.as_ref().map(|icp| IcpReport {
                 rotation_deg: icp.rotation_correction_deg,
                 translation_um: icp.translation_correction_m * um,
@@ -132,11 +140,19 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                 iterations: icp.iterations,
                 converged: icp.converged,
             }),
-            pose_error_vs_truth_deg: scan.fused.residual_pose_error.0,
-            pose_error_vs_truth_um: scan.fused.residual_pose_error.1 * um,
+            pose_error_vs_truth_deg: scan.fused.truth.as_ref().map(|t| t.residual_pose_error.0),
+            pose_error_vs_truth_um: scan
+                .fused
+                .truth
+                .as_ref()
+                .map(|t| t.residual_pose_error.1 * um),
         },
         warnings: scan.warnings.clone(),
-        timings_ms: scan.timings_ms.iter().map(|(n, ms)| (n.to_string(), *ms)).collect(),
+        timings_ms: scan
+            .timings_ms
+            .iter()
+            .map(|(n, ms)| (n.to_string(), *ms))
+            .collect(),
     }
 }
 
@@ -146,8 +162,8 @@ pub fn report(scan: &ScanResult) -> ScanReport {
 pub const CLOUD_VIEWS: [(&str, f64, f64); 2] = [("front", 0.0, 0.0), ("oblique", -35.0, 25.0)];
 
 /// Writes `dir/{camera,phase,depth,error}_{a,b}.png` (error: black = exact,
-/// white = 500 um or more), `cloud_{front,oblique}.png` (the fused cloud,
-/// Lambert-shaded from PCA normals), `head_a.ply`,
+/// white = 500 um or more; only with a ground truth), `cloud_{front,oblique}.png`
+/// (the fused cloud, Lambert-shaded from PCA normals), `head_a.ply`,
 /// `head_b.ply`, `report.json`, then `scan.ply`.
 pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError> {
     std::fs::create_dir_all(dir).map_err(|source| OutputError::Dir {
@@ -173,24 +189,26 @@ pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputErr
             &normalise_for_view(&depth),
             true,
         )?;
-        // Error picture: 0 = exact, white = 500 um or more.
-        let err = Raster {
-            width: h.error_m.width,
-            height: h.error_m.height,
-            data: h
-                .error_m
-                .data
-                .iter()
-                .map(|e| {
-                    if e.is_finite() {
-                        (e / 500e-6).min(1.0)
-                    } else {
-                        0.0
-                    }
-                })
-                .collect(),
-        };
-        save_gray_png(&dir.join(format!("error_{tag}.png")), &err, false)?;
+        if let Some(truth) = &h.truth {
+            // Error picture: 0 = exact, white = 500 um or more.
+            let err = Raster {
+                width: truth.error_m.width,
+                height: truth.error_m.height,
+                data: truth
+                    .error_m
+                    .data
+                    .iter()
+                    .map(|e| {
+                        if e.is_finite() {
+                            (e / 500e-6).min(1.0)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect(),
+            };
+            save_gray_png(&dir.join(format!("error_{tag}.png")), &err, false)?;
+        }
         write_ply(&dir.join(format!("head_{tag}.ply")), &h.cloud_in_a)?;
     }
     write_cloud_pictures(dir, &scan.fused.cloud, scan.config.camera_px)?;
