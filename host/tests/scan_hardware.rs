@@ -592,6 +592,10 @@ fn slscan_scan_on_a_port_writes_clouds_and_a_report_without_truth() {
 fn slscan_scan_with_a_missing_frame_fails_and_writes_no_scan() {
     let fault = Fault::Drop { head: 1, index: 0 };
     let (out, folders) = with_vendor_tools("cli-missing", fault, |port, folders| {
+        // An earlier run's results in the output folder must not survive.
+        std::fs::create_dir_all(&folders.out).unwrap();
+        std::fs::write(folders.out.join("scan.ply"), b"an earlier run").unwrap();
+        std::fs::write(folders.out.join("report.json"), b"{}").unwrap();
         slscan_scan(port, folders, &["--frame-timeout-s", "5"])
     });
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -601,6 +605,7 @@ fn slscan_scan_with_a_missing_frame_fails_and_writes_no_scan() {
         "{stderr}"
     );
     assert!(!folders.out.join("scan.ply").exists());
+    assert!(!folders.out.join("report.json").exists());
     let _ = std::fs::remove_dir_all(&folders.root);
 }
 

@@ -232,6 +232,9 @@ fn scan_hardware(
         .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
     let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
     let source = format!("rig file {}", calibration_path.display());
+    // As scan_to_dir does for --sim: a failed scan must not leave an
+    // earlier run's scan.ply or report.json to be read as its result.
+    scan::output::remove_stale(&args.out)?;
     let result = scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?;
     Ok(scan::output::write_scan(&args.out, &result)?)
 }
