@@ -80,6 +80,11 @@ pub struct Args {
     /// --sim: simulate and calibrate two heads and their head-to-head pose.
     #[arg(long, requires = "sim")]
     two_heads: bool,
+    /// --sim: rays per camera pixel and axis of the board renders (each pixel
+    /// integrates over its area); 1 renders one aliased ray per pixel.
+    #[arg(long, default_value_t = hil_sim::twin::CALIBRATION_PIXEL_SAMPLES,
+          value_parser = clap::value_parser!(u32).range(1..=16))]
+    pixel_samples: u32,
     /// --sim --two-heads: name of the second head.
     #[arg(long, default_value = "B")]
     head_b: String,
@@ -152,7 +157,8 @@ fn run_sim(args: &Args, options: &HeadOptions) -> anyhow::Result<()> {
         Some(n) => bail!("--noise {n} is not a non-negative grey level"),
         None => base.read_noise_e,
     };
-    let sim = TwinHead::standard(args.views, &Detail::default());
+    let mut sim = TwinHead::standard(args.views, &Detail::default());
+    sim.pixel_samples = args.pixel_samples;
     let sensor = SensorModel {
         read_noise_e,
         bits: args.bits,
