@@ -9,7 +9,7 @@ use nalgebra::{Isometry3, Vector3};
 
 use super::clouds::{points_f64, transformed};
 use super::metrics::{self, Sample};
-use super::{twin_truth, FusedTruth, HeadTruth, ScanError};
+use super::{aliasing, twin_truth, FusedTruth, HeadTruth, ScanError};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::Reconstruction;
@@ -46,12 +46,15 @@ pub struct Measured {
 
 /// Measures `recons` (each in its head's frame; each head alone, moved into
 /// head A's frame by the TRUE pose) and `fused` (head A's frame), where
-/// `a_from_b_used` is the B->A pose fusion used.
+/// `a_from_b_used` is the B->A pose fusion used; `aliased_masks` are the
+/// overlaps the flat fields measured per head (simultaneous mode; else
+/// empty), compared with the truth's.
 pub fn measure(
     truth: &GroundTruth,
     recons: &[Reconstruction],
     fused: &PointCloud,
     a_from_b_used: &Isometry3<f64>,
+    aliased_masks: &[Vec<bool>],
 ) -> Result<Measured, ScanError> {
     let twin = &truth.twin;
     let a_from_world = twin_truth::head_from_world(twin.rig(), 0);
@@ -81,6 +84,9 @@ pub fn measure(
             error_m: error_map(recon, g, &head_from_world),
             accuracy,
             overlap,
+            aliased_mask: aliased_masks
+                .get(h)
+                .map(|m| aliasing::agreement(m, &g.overlap)),
         });
     }
     let fused_pts = points_f64(fused);
