@@ -3,7 +3,8 @@
 //!
 //! Prints a table for 1 and 2 rayon threads and two input types: `u16 (12-bit)` (what a
 //! machine-vision camera delivers; `ReconstructConfig::full_scale = 4095`) and `f32`
-//! (the same frames as floats in [0, 1]). Columns: the fused pass into a fresh result
+//! (the same frames as floats in [0, 1]), and u16 through a projector model with lens
+//! distortion (triangulation then iterates per pixel). Columns: the fused pass into a fresh result
 //! (`reconstruct`), the fused pass into a reused result (`reconstruct_into`, no fresh
 //! memory), and the staged passes with their per-stage wall times. Frames come from the
 //! formula-based renderer (`slscan::synth`): a plane with the two calibration spheres,
@@ -19,7 +20,7 @@
 
 use std::time::Instant;
 
-use slscan::calibration::PinholeModel;
+use slscan::calibration::{Distortion, PinholeModel};
 use slscan::phase::Sample;
 use slscan::raster::Raster;
 use slscan::reconstruct::{ReconstructConfig, Reconstructor, StageTimes};
@@ -96,9 +97,29 @@ fn main() {
             let rec = Reconstructor::new(&camera, &projector, config.clone()).expect("set-up");
             let ctor_ms = t.elapsed().as_secs_f64() * 1e3;
             config.full_scale = Some(FULL_SCALE_12_BIT);
-            let rec_u16 = Reconstructor::new(&camera, &projector, config).expect("set-up");
+            let rec_u16 = Reconstructor::new(&camera, &projector, config.clone()).expect("set-up");
             row(&rec_u16, &refs_u16, "u16 (12-bit)", threads, ctor_ms, runs);
             row(&rec, &refs, "f32", threads, ctor_ms, runs);
+            // A calibrated projector has lens distortion, and then each column is no
+            // plane and triangulation iterates per pixel: time that path on the same
+            // frames (the geometry is then off by the distortion; only the cost counts).
+            let mut distorted = projector;
+            distorted.distortion = Distortion {
+                k1: 0.02,
+                k2: -0.005,
+                p1: 0.0002,
+                p2: -0.0001,
+                k3: 0.0,
+            };
+            let rec_distorted = Reconstructor::new(&camera, &distorted, config).expect("set-up");
+            row(
+                &rec_distorted,
+                &refs_u16,
+                "u16, distorted projector",
+                threads,
+                ctor_ms,
+                runs,
+            );
         });
     }
 }
