@@ -1,25 +1,27 @@
 //! A whole scan: plan -> capture -> reconstruct -> fuse -> measure.
 //!
 //! ```text
-//! twin scene + rig ──> RigCalibration (the twin's truth, per head frame)
+//! rig file (`calibrate`) or the twin's truth ──> RigCalibration (per head frame)
 //! per head (sequential mode: head A alone, then head B alone):
 //!   fringe set ──Projector::load_sequence──> DMD table
 //!   plan (one pattern per exposure) ──Board::run_plan──> board-clock timeline
 //!   ──Camera::take_frames──> one frame per trigger ──Reconstructor──> cloud
 //! clouds A, B ──fusion::fuse_heads (ICP from the calibrated B->A)──> fused cloud
-//! every cloud ──metrics (twin ground truth)──> RMSE, coverage
+//! every cloud ──truth_frame (rigid fit of its frame)──metrics (twin ground truth)──> RMSE, coverage
 //! ```
 //!
 //! [`run_sim`] does it all on the simulated rig and returns a [`ScanResult`]
 //! in memory; [`output::write_scan`] writes it (every file via a temporary
 //! and a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
 
+pub mod calibration_source;
 pub mod capture;
 mod clouds;
 mod fuse;
 pub mod metrics;
 pub mod output;
 pub mod plan;
+pub mod truth_frame;
 pub mod twin_truth;
 
 use std::sync::Arc;
@@ -38,6 +40,7 @@ use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
 use crate::rig::sim::{SimRig, SimRigConfig};
 use crate::rig::RigError;
+pub use calibration_source::{CalibrationSource, UsedCalibration};
 use clouds::{from_fusion, points_f64, transformed};
 use metrics::{PixelAccuracy, Sample};
 
@@ -75,6 +78,8 @@ pub struct ScanConfig {
     pub board: SimBoardConfig,
     /// Timeouts of the board client.
     pub client: ClientConfig,
+    /// The calibration to reconstruct with (default: the twin's truth).
+    pub calibration: CalibrationSource,
 }
 
 impl ScanConfig {
@@ -95,6 +100,7 @@ impl ScanConfig {
                 attempt_timeout: std::time::Duration::from_secs(2),
                 attempts: 3,
             },
+            calibration: CalibrationSource::TwinTruth,
         }
     }
 }
@@ -147,6 +153,9 @@ pub enum ScanError {
         /// Why.
         source: crate::demultiplex::DemuxError,
     },
+    /// The calibration file is unusable (checked before any capture).
+    #[error("calibration")]
+    Calibration(#[from] calibration_source::CalibrationSourceError),
     /// The plan could not be built.
     #[error("plan")]
     Plan(#[from] plan::PlanBuildError),
@@ -215,6 +224,8 @@ pub struct HeadResult {
     pub plane_rmse_m: f64,
     /// Coverage of the measurable object surface.
     pub coverage: f64,
+    /// How the head's calibrated frame was fitted onto the truth before measuring.
+    pub frame_fit: truth_frame::FrameFit,
 }
 
 /// The fused result.
@@ -230,8 +241,11 @@ pub struct FusedResult {
     /// Coverage of the measurable object surface.
     pub coverage: f64,
     /// Error of the B->A pose used (ICP-refined, or calibrated without ICP)
-    /// against the twin's true B->A: (degrees, metres).
+    /// against the twin's true B->A, both heads' frames fitted onto the
+    /// truth: (degrees, metres).
     pub residual_pose_error: (f64, f64),
+    /// How head A's calibrated frame (the fused frame) was fitted onto the truth.
+    pub frame_fit: truth_frame::FrameFit,
 }
 
 /// A finished scan, in memory.
@@ -239,6 +253,8 @@ pub struct FusedResult {
 pub struct ScanResult {
     /// The configuration it ran with.
     pub config: ScanConfig,
+    /// The calibration it reconstructed with.
+    pub calibration: UsedCalibration,
     /// Heads A and B.
     pub heads: Vec<HeadResult>,
     /// The fused cloud.
@@ -287,12 +303,16 @@ pub fn run_sim(
             projectors: rig.projectors.len(),
         });
     }
+    // Before anything is captured: a bad rig file ends the scan here.
+    let used = calibration_source::resolve(
+        &config.calibration,
+        &rig,
+        config.camera_px,
+        config.projector_px,
+    )?;
+    let calibration = &used.rig;
     let is_object = metrics::object_ids(&scene);
     let twin = Arc::new(TwinRig::new(scene, rig)?);
-    let calibration = twin_truth::twin_calibration(twin.rig(), 2);
-    tracing::warn!(
-        "calibration: the digital twin's TRUE device models, not an estimated calibration"
-    );
     let sensor = sim_sensor();
     let noise_sigma = noise_sigma(&sensor);
     progress(Progress::Stage {
@@ -358,8 +378,7 @@ pub fn run_sim(
         name: "fuse",
         total: 1,
     });
-    let b_from_a = twin_truth::b_from_a(twin.rig());
-    let a_from_b_calibrated: Isometry3<f64> = b_from_a.inverse();
+    let a_from_b_calibrated: Isometry3<f64> = used.a_from_b();
     let fused = fuse::fuse(
         &recons[0].cloud,
         &recons[1].cloud,
@@ -371,26 +390,51 @@ pub fn run_sim(
     progress(Progress::Done);
     clock.lap("fuse");
 
-    // Measure against the truth, everything in head A's frame.
+    // Measure against the truth, everything in head A's calibrated frame,
+    // each cloud's frame first fitted onto the truth (see truth_frame).
     progress(Progress::Stage {
         name: "measure",
         total: 3,
     });
-    let a_from_world = twin_truth::head_from_world(twin.rig(), 0);
+    let geometries: Vec<_> = (0..2).map(|h| twin.renderer(h)).collect::<Result<_, _>>()?;
+    let any_pixel = |g: &hil_sim::twin::CameraGeometry| -> Vec<bool> {
+        g.point_m.iter().map(|p| p[0].is_finite()).collect()
+    };
+    let fused_cloud = from_fusion(&fused.cloud);
+    let fused_pts = points_f64(&fused_cloud);
+    let true_a_from_world = twin_truth::head_from_world(twin.rig(), 0);
+    let truth_in_true_a: Vec<Sample> = geometries
+        .iter()
+        .flat_map(|g| metrics::samples(g.geometry(), &any_pixel(g.geometry()), &true_a_from_world))
+        .collect();
+    let fused_fit = truth_frame::fit_frame(
+        &fused_pts,
+        &truth_in_true_a,
+        &true_a_from_world,
+        "fused cloud",
+        &mut warnings,
+    );
+    let a_from_world = fused_fit.frame_from_world;
     let mut surface: Vec<Sample> = Vec::new();
     let mut all_surface: Vec<Sample> = Vec::new();
-    let geometries: Vec<_> = (0..2).map(|h| twin.renderer(h)).collect::<Result<_, _>>()?;
     for (h, g) in geometries.iter().enumerate() {
         let g = g.geometry();
         let own = metrics::own_object_pixels(g, h, &is_object);
         surface.extend(metrics::samples(g, &own, &a_from_world));
-        let any: Vec<bool> = g.point_m.iter().map(|p| p[0].is_finite()).collect();
-        all_surface.extend(metrics::samples(g, &any, &a_from_world));
+        all_surface.extend(metrics::samples(g, &any_pixel(g), &a_from_world));
     }
     let mut heads = Vec::new();
     for (h, recon) in recons.into_iter().enumerate() {
         let g = geometries[h].geometry();
-        let head_from_world = twin_truth::head_from_world(twin.rig(), h);
+        let true_head_from_world = twin_truth::head_from_world(twin.rig(), h);
+        let frame_fit = truth_frame::fit_frame(
+            &points_f64(&recon.cloud),
+            &metrics::samples(g, &any_pixel(g), &true_head_from_world),
+            &true_head_from_world,
+            &format!("head {}", twin_truth::HEAD_NAMES[h]),
+            &mut warnings,
+        );
+        let head_from_world = frame_fit.frame_from_world;
         let accuracy = metrics::pixel_accuracy(&recon, g, &head_from_world, h, &is_object);
         let a_from_head = a_from_world * head_from_world.inverse();
         let cloud_in_a = transformed(&recon.cloud, &a_from_head);
@@ -405,17 +449,20 @@ pub fn run_sim(
             cloud_in_a,
             error_m,
             accuracy,
+            frame_fit,
         });
         progress(Progress::Step);
     }
-    let fused_cloud = from_fusion(&fused.cloud);
-    let fused_pts = points_f64(&fused_cloud);
-    let true_a_from_b = b_from_a.inverse();
-    let used = fused
+    let true_a_from_b = twin_truth::b_from_a(twin.rig()).inverse();
+    let used_pose = fused
         .icp
         .as_ref()
         .map_or(a_from_b_calibrated, |icp| icp.transform);
-    let diff = used * true_a_from_b.inverse();
+    // The pose used maps B's calibrated frame into A's; in true frames:
+    let used_in_true_frames = heads[0].frame_fit.true_from_estimate
+        * used_pose
+        * heads[1].frame_fit.true_from_estimate.inverse();
+    let diff = used_in_true_frames * true_a_from_b.inverse();
     let fused = FusedResult {
         plane_rmse_m: metrics::point_to_plane_rmse(&fused_pts, &all_surface)?,
         coverage: metrics::coverage(&fused_pts, &surface)?,
@@ -425,12 +472,14 @@ pub fn run_sim(
             diff.rotation.angle().to_degrees(),
             diff.translation.vector.norm(),
         ),
+        frame_fit: fused_fit,
     };
     progress(Progress::Step);
     progress(Progress::Done);
     clock.lap("measure");
     Ok(ScanResult {
         config: config.clone(),
+        calibration: used,
         heads,
         fused,
         surface_samples: surface.len(),

@@ -7,7 +7,8 @@ use super::{Mode, ScanResult};
 use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
-    write_report, FusedReport, HeadReport, IcpReport, ReportError, ScanReport,
+    write_report, FrameFitReport, FrameOffset, FusedReport, HeadReport, IcpReport, ReportError,
+    ScanReport,
 };
 use crate::raster::Raster;
 
@@ -49,8 +50,15 @@ pub fn report(scan: &ScanResult) -> ScanReport {
         projector_px: c.projector_px,
         periods_px: c.periods_px.clone(),
         steps: c.steps,
-        calibration: "the digital twin's TRUE device models (not an estimated calibration)".into(),
-        truth_note: "rmse_um per head: each valid pixel's point vs the true point of that pixel; \
+        calibration: scan.calibration.description.clone(),
+        calibration_vs_truth: scan.calibration.vs_truth.clone(),
+        truth_frame_fit: FrameFitReport {
+            heads: scan.heads.iter().map(|h| offset(&h.frame_fit)).collect(),
+            fused: offset(&scan.fused.frame_fit),
+        },
+        truth_note: "every cloud is measured after a rigid fit of its calibrated frame onto the true camera frame \
+            (truth_frame_fit; shape and scale errors stay); \
+            rmse_um per head: each valid pixel's point vs the true point of that pixel; \
             plane_rmse_um and fused.rmse_um: each point vs the tangent plane of its nearest true surface sample; \
             coverage: fraction of the measurable object surface (pixels of either camera seeing the object, \
             all scene objects but the background wall, lit by that camera's own projector) with a cloud point within 1 mm"
@@ -88,6 +96,13 @@ pub fn report(scan: &ScanResult) -> ScanReport {
         },
         warnings: scan.warnings.clone(),
         timings_ms: scan.timings_ms.iter().map(|(n, ms)| (n.to_string(), *ms)).collect(),
+    }
+}
+
+fn offset(fit: &super::truth_frame::FrameFit) -> FrameOffset {
+    FrameOffset {
+        rotation_deg: fit.rotation_deg(),
+        translation_um: fit.translation_m() * 1e6,
     }
 }
 

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use slscan::scan::{self, Mode, Progress, ScanConfig};
+use slscan::scan::{self, CalibrationSource, Mode, Progress, ScanConfig};
 
 /// Options of `slscan scan`.
 #[derive(clap::Args)]
@@ -37,6 +37,11 @@ pub struct Args {
     /// default: seed 004's three pitches over the DMD width (S = 64).
     #[arg(long, value_delimiter = ',')]
     periods: Option<Vec<f64>>,
+    /// Rig file to reconstruct with and to seed the ICP from (`slscan
+    /// calibrate --sim --scene NAME --out FILE`); default with --sim: the
+    /// digital twin's TRUE devices (labelled so in the report).
+    #[arg(long, value_name = "FILE")]
+    calibration: Option<PathBuf>,
 }
 
 /// `--mode` values.
@@ -67,6 +72,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     config.seed = args.seed;
     if let Some(periods) = args.periods {
         config.periods_px = periods;
+    }
+    if let Some(path) = args.calibration {
+        config.calibration = CalibrationSource::File(path);
     }
     let style = ProgressStyle::with_template("{prefix:>18} [{bar:30}] {pos}/{len} {elapsed}")
         .unwrap_or_else(|_| ProgressStyle::default_bar())
@@ -115,6 +123,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => println!("no ICP: the heads share no usable surface; calibrated pose used"),
     }
     println!("calibration: {}", report.calibration);
+    if let Some(e) = &report.calibration_vs_truth {
+        for h in &e.heads {
+            println!(
+                "  head {} vs twin truth: camera dfx {:+.2} dcx {:+.2} dcy {:+.2} px, projector dfx {:+.2} dcy {:+.2} px, camera->projector {:.3} deg / {:.2} mm",
+                h.name, h.camera.dfx_px, h.camera.dcx_px, h.camera.dcy_px, h.projector.dfx_px,
+                h.projector.dcy_px, h.camera_to_projector.rotation_deg, h.camera_to_projector.translation_mm
+            );
+        }
+        if let Some(p) = &e.head_to_head {
+            println!(
+                "  head-to-head vs twin truth: {:.3} deg / {:.2} mm (the ICP's start)",
+                p.rotation_deg, p.translation_mm
+            );
+        }
+    }
+    let fit = &report.truth_frame_fit;
+    println!(
+        "frames fitted onto the truth before measuring: head A {:.3} deg / {:.0} um, head B {:.3} deg / {:.0} um, fused {:.3} deg / {:.0} um",
+        fit.heads[0].rotation_deg, fit.heads[0].translation_um, fit.heads[1].rotation_deg,
+        fit.heads[1].translation_um, fit.fused.rotation_deg, fit.fused.translation_um
+    );
+    println!(
+        "B->A pose used vs truth (frames fitted): {:.4} deg / {:.1} um",
+        f.pose_error_vs_truth_deg, f.pose_error_vs_truth_um
+    );
     for w in &report.warnings {
         eprintln!("slscan: WARNING: {w}");
     }
