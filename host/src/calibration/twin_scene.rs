@@ -173,12 +173,21 @@ pub fn calibrate_scene(
     for (h, twin) in scene.heads.iter().enumerate() {
         let name = &scene.names[h];
         let head_seed = seed.wrapping_add(h as u64 * 0x9e37);
+        let start = std::time::Instant::now();
         let captures = twin.render(sensor, head_seed, true)?;
+        let rendered = start.elapsed();
         let cal = calibrate_head(name, &target, &captures, &twin.projector_spec(), options)
             .map_err(|source| SceneCalibrationError::Head {
                 head: name.clone(),
                 source,
             })?;
+        tracing::info!(
+            head = %name,
+            views = captures.len(),
+            render_ms = rendered.as_millis() as u64,
+            calibrate_ms = (start.elapsed() - rendered).as_millis() as u64,
+            "head calibrated"
+        );
         heads.push(cal);
         let shared = TwinHead {
             world_from_board: scene.shared.clone(),
