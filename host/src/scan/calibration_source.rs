@@ -193,7 +193,7 @@ mod tests {
         let path = temp("truth.json");
         write_rig(&path, &twin_truth::twin_calibration(&rig, 2)).unwrap();
         let used = resolve(
-            &CalibrationSource::File(path),
+            &CalibrationSource::File(path.clone()),
             &rig,
             detail.camera,
             detail.projector,
@@ -205,6 +205,7 @@ mod tests {
         assert!(got.rotation.angle_to(&want.rotation) < 1e-9);
         let e = used.vs_truth.expect("estimate compared");
         assert!(e.head_to_head.unwrap().translation_mm < 1e-9);
+        std::fs::remove_file(&path).unwrap();
     }
 
     #[test]
@@ -231,5 +232,6 @@ mod tests {
             err,
             CalibrationSourceError::HeadCount { heads: 1, .. }
         ));
+        std::fs::remove_file(&path).unwrap();
     }
 }
