@@ -94,17 +94,10 @@ impl SimBoard {
 
     /// What the simulated board tells the host about itself.
     pub fn device_info(seed: u64) -> DeviceInfo {
-        DeviceInfo {
-            protocol_version: PROTOCOL_VERSION,
-            firmware_version: FirmwareVersion {
-                major: 0,
-                minor: 1,
-                patch: 0,
-            },
-            board_id: 0x5157_0000_0000_0000 | (seed & 0xffff_ffff),
-            limits: BoardLimits::STM32G474,
-            reset_cause: ResetCause::Simulated,
-        }
+        sim_device_info(
+            0x5157_0000_0000_0000 | (seed & 0xffff_ffff),
+            BoardLimits::STM32G474,
+        )
     }
 
     /// The configuration it was built with.
@@ -242,6 +235,22 @@ impl SimBoard {
             *slot = head;
         }
         self.rig_heads = plan.heads.to_vec();
+    }
+}
+
+/// Device info of a simulated board (board-core firmware 0.1.0 on a virtual
+/// clock): the one literal the simulated board and the soak share.
+pub fn sim_device_info(board_id: u64, limits: BoardLimits) -> DeviceInfo {
+    DeviceInfo {
+        protocol_version: PROTOCOL_VERSION,
+        firmware_version: FirmwareVersion {
+            major: 0,
+            minor: 1,
+            patch: 0,
+        },
+        board_id,
+        limits,
+        reset_cause: ResetCause::Simulated,
     }
 }
 

@@ -13,13 +13,11 @@
 use board_core::{Dispatcher, TriggerHardware};
 use protocol::limits::ns_to_ticks;
 use protocol::plan::random::{random_kind, random_plan, PlanKind};
-use protocol::{
-    BoardLimits, DeviceInfo, FirmwareVersion, Request, ResetCause, Response, ScanPlan, ScanReport,
-    ScanState, PROTOCOL_VERSION,
-};
+use protocol::{BoardLimits, Request, Response, ScanPlan, ScanReport, ScanState};
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::board::sim_device_info;
 use crate::sim_hardware::{camera_config, projector_config, RecordedEdge, SimHardware, SimHead};
 
 /// Why one soak scan could not be run at all.
@@ -113,21 +111,6 @@ impl SoakTotals {
     }
 }
 
-/// Device info of the simulated board.
-pub fn sim_device_info(limits: BoardLimits) -> DeviceInfo {
-    DeviceInfo {
-        protocol_version: PROTOCOL_VERSION,
-        firmware_version: FirmwareVersion {
-            major: 0,
-            minor: 1,
-            patch: 0,
-        },
-        board_id: 0x5153_494D, // "SIM"
-        limits,
-        reset_cause: ResetCause::Simulated,
-    }
-}
-
 /// Index of a kind in `SoakTotals::by_kind`.
 fn kind_index(kind: PlanKind) -> usize {
     match kind {
@@ -196,7 +179,7 @@ pub fn run_scan(
     let limits = BoardLimits::STM32G474;
     let heads = sim_heads(plan, device_seed, faults);
     let mut hw = SimHardware::new(limits, heads);
-    let mut board = Dispatcher::new(sim_device_info(limits));
+    let mut board = Dispatcher::new(sim_device_info(0x5153_494D, limits));
     let start_tick = upload_and_start(&mut board, &mut hw, plan)?;
     let report = drive_to_end(&mut board, &mut hw, start_tick)?;
     let mut totals = SoakTotals {

@@ -1,12 +1,14 @@
 //! Phase maps on disk as `.npy` (DESIGN: float arrays go to .npy): 2-D,
 //! C order, little-endian f32 or f64, NaN where there is no phase.
 //!
-//! A minimal reader/writer of NumPy's format (versions 1-3) for the
-//! calibration CLI; no crate is needed for a 2-D float array.
+//! A minimal reader of NumPy's format (versions 1-3) for the calibration
+//! CLI (no crate is needed for a 2-D float array); writing uses
+//! [`crate::io::npy`].
 
 use std::path::{Path, PathBuf};
 
 use super::board::GrayImage;
+use crate::io::npy::encode_npy_f32_rows;
 use crate::io::write_atomically;
 
 /// Errors of phase-map files.
@@ -140,23 +142,7 @@ pub fn read_phase_map(path: &Path) -> Result<GrayImage, PhaseFileError> {
 
 /// Writes a phase map as a 2-D '<f4' .npy file (temp file, then rename).
 pub fn write_phase_map(path: &Path, map: &GrayImage) -> Result<(), PhaseFileError> {
-    let mut header = format!(
-        "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}), }}",
-        map.height(),
-        map.width()
-    );
-    // Pad so that magic + version + length + header is a multiple of 64.
-    while !(10 + header.len() + 1).is_multiple_of(64) {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut bytes = Vec::with_capacity(10 + header.len() + 4 * map.as_raw().len());
-    bytes.extend_from_slice(b"\x93NUMPY\x01\x00");
-    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    bytes.extend_from_slice(header.as_bytes());
-    for v in map.as_raw() {
-        bytes.extend_from_slice(&v.to_le_bytes());
-    }
+    let bytes = encode_npy_f32_rows(map.width() as usize, map.height() as usize, map.as_raw());
     write_atomically(path, |w| w.write_all(&bytes)).map_err(|source| PhaseFileError::Io {
         path: path.to_owned(),
         source,

@@ -3,6 +3,7 @@
 //! Every writer goes through [`write_atomically`], so a failed write never leaves a
 //! partial output file behind.
 
+pub mod cloud_render;
 pub mod images;
 pub mod npy;
 pub mod ply;

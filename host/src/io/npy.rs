@@ -12,21 +12,26 @@ pub fn write_npy_f32(path: &Path, img: &Raster<f32>) -> std::io::Result<()> {
 
 /// The bytes of a `(height, width)` float32 `.npy` file.
 pub fn encode_npy_f32(img: &Raster<f32>) -> Vec<u8> {
-    let dict = format!(
-        "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}), }}",
-        img.height, img.width
-    );
+    encode_npy_f32_rows(img.width, img.height, &img.data)
+}
+
+/// The bytes of a `(height, width)` float32 `.npy` file holding `data` in
+/// row-major order (`data.len()` must be `width * height`).
+pub fn encode_npy_f32_rows(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
+    debug_assert_eq!(data.len(), width * height);
+    let dict =
+        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({height}, {width}), }}");
     // Magic (6) + version (2) + header length (2) + dict + padding + '\n' = multiple of 64.
     let unpadded = 10 + dict.len() + 1;
     let pad = (64 - unpadded % 64) % 64;
     let header_len = dict.len() + pad + 1;
-    let mut out = Vec::with_capacity(10 + header_len + 4 * img.len());
+    let mut out = Vec::with_capacity(10 + header_len + 4 * data.len());
     out.extend_from_slice(b"\x93NUMPY\x01\x00");
     out.extend_from_slice(&(header_len as u16).to_le_bytes());
     out.extend_from_slice(dict.as_bytes());
     out.extend(std::iter::repeat_n(b' ', pad));
     out.push(b'\n');
-    for v in &img.data {
+    for v in data {
         out.extend_from_slice(&v.to_le_bytes());
     }
     out

@@ -1,5 +1,6 @@
 //! `report.json` of a scan: what was measured, in units a person reads
-//! (micrometres, milliseconds, degrees), written atomically.
+//! (micrometres, milliseconds, degrees), written atomically. Figures against
+//! a ground truth are `Option`s: `null` on hardware, where there is none.
 
 use std::path::Path;
 
@@ -13,20 +14,26 @@ pub struct HeadReport {
     /// Valid points.
     pub points: usize,
     /// RMS distance of each valid pixel's point to its true point, micrometres.
-    pub rmse_um: f64,
+    pub rmse_um: Option<f64>,
     /// Median of that distance, micrometres.
-    pub median_error_um: f64,
+    pub median_error_um: Option<f64>,
     /// RMS of the predicted per-point sigma (phase-noise Cramer-Rao bound
     /// in metres along the ray), micrometres: the limit `rmse_um` meets.
-    pub predicted_rms_um: f64,
+    pub predicted_rms_um: Option<f64>,
     /// Valid pixels off by more than 1 mm (counted in the RMSE).
-    pub outliers_over_1mm: usize,
+    pub outliers_over_1mm: Option<usize>,
     /// Point-to-plane RMSE against the true surface, micrometres.
-    pub plane_rmse_um: f64,
+    pub plane_rmse_um: Option<f64>,
     /// Fraction of the rig's measurable object surface this head covers.
-    pub coverage: f64,
+    pub coverage: Option<f64>,
     /// Fraction of this camera's object pixels lit by its projector that were reconstructed.
-    pub own_pixel_coverage: f64,
+    pub own_pixel_coverage: Option<f64>,
+    /// This camera's pixels whose surface point both projectors light (truth).
+    pub overlap_pixels: Option<usize>,
+    /// Valid points among them.
+    pub overlap_points: Option<usize>,
+    /// `rmse_um` over those points only, micrometres (null when none).
+    pub overlap_rmse_um: Option<f64>,
 }
 
 /// The ICP refinement of the calibrated head-to-head pose.
@@ -52,16 +59,16 @@ pub struct FusedReport {
     /// Points.
     pub points: usize,
     /// Point-to-plane RMSE against the true surface, micrometres.
-    pub rmse_um: f64,
+    pub rmse_um: Option<f64>,
     /// Fraction of the measurable object surface covered.
-    pub coverage: f64,
+    pub coverage: Option<f64>,
     /// Registration (null when none ran: heads with no shared surface).
     pub icp: Option<IcpReport>,
     /// B->A pose used (ICP-refined, or calibrated) against the twin's
     /// true pose: rotation, degrees.
-    pub pose_error_vs_truth_deg: f64,
+    pub pose_error_vs_truth_deg: Option<f64>,
     /// The same: translation, micrometres.
-    pub pose_error_vs_truth_um: f64,
+    pub pose_error_vs_truth_um: Option<f64>,
 }
 
 /// Size of a rigid fit.
@@ -103,12 +110,12 @@ pub struct ScanReport {
     /// the truth itself, and on hardware).
     pub calibration_vs_truth: Option<crate::calibration::truth_error::RigTruthError>,
     /// Rigid fit of each cloud's calibrated frame onto the truth, applied
-    /// before measuring (`slscan::scan::truth_frame`).
-    pub truth_frame_fit: FrameFitReport,
+    /// before measuring (`slscan::scan::truth_frame`); null without a truth.
+    pub truth_frame_fit: Option<FrameFitReport>,
     /// How truth figures are defined.
     pub truth_note: String,
     /// Samples of the measurable object surface (coverage denominator).
-    pub surface_samples: usize,
+    pub surface_samples: Option<usize>,
     /// Heads A and B.
     pub heads: Vec<HeadReport>,
     /// The fused cloud.
@@ -157,13 +164,16 @@ mod tests {
         let head = HeadReport {
             name: "A".into(),
             points: 0,
-            rmse_um: f64::NAN,
-            median_error_um: f64::NAN,
-            predicted_rms_um: f64::NAN,
-            outliers_over_1mm: 0,
-            plane_rmse_um: 1.0,
-            coverage: 0.0,
-            own_pixel_coverage: 0.0,
+            rmse_um: Some(f64::NAN),
+            median_error_um: None,
+            predicted_rms_um: Some(f64::NAN),
+            outliers_over_1mm: Some(0),
+            plane_rmse_um: Some(1.0),
+            coverage: None,
+            own_pixel_coverage: Some(0.0),
+            overlap_pixels: Some(0),
+            overlap_points: Some(0),
+            overlap_rmse_um: Some(f64::NAN),
         };
         let report = ScanReport {
             scene: "x".into(),
@@ -174,20 +184,14 @@ mod tests {
             steps: 4,
             calibration: "truth".into(),
             calibration_vs_truth: None,
-            truth_frame_fit: FrameFitReport {
-                heads: Vec::new(),
-                fused: FrameOffset {
-                    rotation_deg: 0.0,
-                    translation_um: 0.0,
-                },
-            },
+            truth_frame_fit: None,
             truth_note: String::new(),
-            surface_samples: 0,
+            surface_samples: None,
             heads: vec![head],
             fused: FusedReport {
                 points: 0,
-                rmse_um: 0.0,
-                coverage: 0.0,
+                rmse_um: None,
+                coverage: Some(0.0),
                 icp: Some(IcpReport {
                     rotation_deg: 0.0,
                     translation_um: 0.0,
@@ -196,8 +200,8 @@ mod tests {
                     iterations: 0,
                     converged: true,
                 }),
-                pose_error_vs_truth_deg: 0.0,
-                pose_error_vs_truth_um: 0.0,
+                pose_error_vs_truth_deg: None,
+                pose_error_vs_truth_um: Some(0.0),
             },
             warnings: Vec::new(),
             timings_ms: [("setup".to_string(), 1.0)].into(),
@@ -207,6 +211,10 @@ mod tests {
         let v: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         assert!(v["heads"][0]["rmse_um"].is_null());
+        // No truth (hardware): null, not 0 or NaN.
+        assert!(v["heads"][0]["coverage"].is_null());
+        assert!(v["fused"]["rmse_um"].is_null());
+        assert!(v["surface_samples"].is_null());
         assert_eq!(v["heads"][0]["plane_rmse_um"], 1.0);
         std::fs::remove_dir_all(&dir).unwrap();
     }

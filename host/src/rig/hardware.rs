@@ -1,56 +1,66 @@
-//! Real devices: the sync board over a serial port, DMD pattern tables and
-//! industrial cameras.
+//! The rig of real devices: the sync board over a serial port
+//! ([`SerialBoard`]), DMD pattern sets handed to the DMD vendor's GUI as
+//! files ([`FolderProjector`], PLACEHOLDER: no DMD driver), and camera
+//! frames from a [`FrameSource`] (today [`FolderCamera`]: the folder the
+//! camera vendor's software writes; a GenICam backend slots in there, see
+//! [`super::camera_source`]).
 //!
-//! PLACEHOLDER: only the board exists (the same serial client as the
-//! simulator uses); no DMD (DLPC350 / DLPC900 I2C or USB) or camera (GenICam)
-//! driver is written yet, so every call fails with a PLACEHOLDER error.
+//! Before each plan the frame source is armed with the frame count each
+//! head's camera will be triggered for, so only frames of that run count.
 
 use protocol::ScanPlan;
 
-use super::{Board, Camera, Projector, RigError};
+use super::camera_source::FrameSource;
+use super::folder_camera::FolderCamera;
+use super::folder_projector::FolderProjector;
+use super::serial_board::SerialBoard;
+use super::{frames_per_head, Board, Camera, Projector, RigError};
 use crate::board::ScanOutcome;
 use crate::raster::Raster;
 
-/// A rig of real devices (PLACEHOLDER: fails on every call).
-#[derive(Debug, Default)]
-pub struct HardwareRig;
+/// Board + projectors + cameras of a real rig.
+pub struct HardwareRig<S: FrameSource = FolderCamera> {
+    board: SerialBoard,
+    projector: FolderProjector,
+    cameras: S,
+    heads: usize,
+}
 
-const WHY: &str = "hardware rig: no DMD or camera driver yet; use --sim";
-
-impl Board for HardwareRig {
-    fn run_plan(&mut self, _plan: &ScanPlan) -> Result<ScanOutcome, RigError> {
-        Err(RigError::Placeholder(WHY))
+impl<S: FrameSource> HardwareRig<S> {
+    /// A rig of `heads` heads from its three parts.
+    pub fn new(board: SerialBoard, projector: FolderProjector, cameras: S, heads: usize) -> Self {
+        HardwareRig {
+            board,
+            projector,
+            cameras,
+            heads,
+        }
     }
 }
 
-impl Projector for HardwareRig {
-    fn dmd_size_px(&self, _head: usize) -> Result<(u32, u32), RigError> {
-        Err(RigError::Placeholder(WHY))
-    }
-
-    fn load_sequence(&mut self, _head: usize, _patterns: &[Raster<f32>]) -> Result<(), RigError> {
-        Err(RigError::Placeholder(WHY))
+impl<S: FrameSource> Board for HardwareRig<S> {
+    fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError> {
+        self.cameras.arm(&frames_per_head(plan, self.heads))?;
+        self.board.run_plan(plan)
     }
 }
 
-impl Camera for HardwareRig {
-    fn image_size_px(&self, _head: usize) -> Result<(u32, u32), RigError> {
-        Err(RigError::Placeholder(WHY))
+impl<S: FrameSource> Projector for HardwareRig<S> {
+    fn dmd_size_px(&self, head: usize) -> Result<(u32, u32), RigError> {
+        self.projector.dmd_size_px(head)
     }
 
-    fn take_frames(&mut self, _head: usize) -> Result<Vec<Raster<f32>>, RigError> {
-        Err(RigError::Placeholder(WHY))
+    fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError> {
+        self.projector.load_sequence(head, patterns)
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+impl<S: FrameSource> Camera for HardwareRig<S> {
+    fn image_size_px(&self, head: usize) -> Result<(u32, u32), RigError> {
+        self.cameras.image_size_px(head)
+    }
 
-    #[test]
-    fn every_call_says_placeholder() {
-        let mut rig = HardwareRig;
-        let err = rig.take_frames(0).unwrap_err().to_string();
-        assert!(err.contains("PLACEHOLDER"), "{err}");
+    fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
+        self.cameras.take_frames(head)
     }
 }

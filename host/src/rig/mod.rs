@@ -11,10 +11,21 @@
 //! - [`sim`]: hil-sim's board on a pseudo-terminal (the host's serial client
 //!   talks to it) with cameras rendered by the digital twin from what the
 //!   simulated DMDs displayed while each simulated shutter was open.
-//! - [`hardware`]: real devices (PLACEHOLDER: no camera or DMD driver yet).
+//! - [`hardware`]: the real sync board over a serial port ([`serial_board`]),
+//!   cameras read from the folder the camera vendor's software writes
+//!   ([`folder_camera`], behind the [`camera_source::FrameSource`] trait where
+//!   a GenICam backend slots in later) and DMD pattern sets written as PNG
+//!   files for the DMD vendor's GUI ([`folder_projector`]: PLACEHOLDER, no DMD
+//!   driver uploads them).
 
+pub mod camera_source;
+pub mod folder_camera;
+pub mod folder_projector;
 pub mod hardware;
+pub mod serial_board;
 pub mod sim;
+
+use std::path::PathBuf;
 
 use protocol::ScanPlan;
 
@@ -44,7 +55,9 @@ pub enum RigError {
         /// Patterns the board could not check.
         unchecked: u32,
     },
-    /// A camera took another number of frames than it was triggered for.
+    /// A camera took another number of frames than it was triggered for
+    /// (a frame source that cannot name the missed triggers leaves
+    /// `missed` empty).
     #[error("head {head}: camera took {got} frames for {expected} triggers (missed triggers: {missed:?})")]
     FrameCount {
         /// Head index (0 = A).
@@ -97,6 +110,76 @@ pub enum RigError {
         /// Pattern size.
         got: (usize, usize),
     },
+    /// A camera frame has another size than the camera's.
+    #[error("head {head} frame {frame} ({path}): image is {got:?} but the camera is {expected:?} (width, height)")]
+    FrameSize {
+        /// Head index.
+        head: usize,
+        /// Frame index in trigger order.
+        frame: usize,
+        /// The frame's file.
+        path: PathBuf,
+        /// Camera size.
+        expected: (u32, u32),
+        /// Frame size.
+        got: (usize, usize),
+    },
+    /// A camera frame could not be read or decoded (corrupt or truncated file).
+    #[error("head {head} frame {frame}: {source}")]
+    FrameDecode {
+        /// Head index.
+        head: usize,
+        /// Frame index in trigger order.
+        frame: usize,
+        /// The decoder's error (names the file).
+        source: crate::io::images::ImageError,
+    },
+    /// A frame holds values above the bit depth the user declared (a 16-bit
+    /// file of a 12-bit camera must stay below 4096).
+    #[error("head {head} frame {frame} ({path}): value {max_value} does not fit the declared {declared_bits}-bit depth (file is {file_bits}-bit)")]
+    FrameBitDepth {
+        /// Head index.
+        head: usize,
+        /// Frame index in trigger order.
+        frame: usize,
+        /// The frame's file.
+        path: PathBuf,
+        /// Bits per sample the file stores (8 or 16).
+        file_bits: u8,
+        /// Bits the user declared.
+        declared_bits: u8,
+        /// Largest raw value found.
+        max_value: u32,
+    },
+    /// A folder of the rig (camera frames, DMD patterns) could not be
+    /// listed, created or written.
+    #[error("{path}: {source}")]
+    Folder {
+        /// The folder or file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Pre-loaded DMD patterns do not match what the scan would upload.
+    #[error("head {head}: {path} holds {found} pattern images, the scan needs {expected}")]
+    PatternsPreloaded {
+        /// Head index.
+        head: usize,
+        /// The pattern folder.
+        path: PathBuf,
+        /// Patterns the scan shows.
+        expected: usize,
+        /// Pattern images found.
+        found: usize,
+    },
+    /// A DMD pattern file could not be written, listed or read back.
+    #[error("head {head}: pattern file: {source}")]
+    PatternImage {
+        /// Head index.
+        head: usize,
+        /// What failed (names the file).
+        source: crate::io::images::ImageError,
+    },
     /// The simulator failed (pty, twin rendering).
     #[error("simulator: {0}")]
     Sim(String),
@@ -129,6 +212,27 @@ pub trait Camera {
     /// trigger in trigger order (values in [0, 1]); fails when a trigger
     /// produced no frame.
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError>;
+}
+
+/// Camera triggers per head of one run of `plan` (cycle exposures of that
+/// head times the repeat count), for heads `0..heads`.
+pub fn frames_per_head(plan: &ScanPlan, heads: usize) -> Vec<usize> {
+    slots_per_frame(plan, heads).iter().map(Vec::len).collect()
+}
+
+/// Per head, per camera trigger of one run of `plan`: how many patterns
+/// that exposure holds.
+pub fn slots_per_frame(plan: &ScanPlan, heads: usize) -> Vec<Vec<usize>> {
+    (0..heads)
+        .map(|h| {
+            let one_cycle: Vec<usize> = plan
+                .exposures()
+                .filter(|e| e.entry.heads.contains(h))
+                .map(|e| e.slots.len())
+                .collect();
+            one_cycle.repeat(plan.repeat_count as usize)
+        })
+        .collect()
 }
 
 /// Checks a finished scan's counters: clean, or [`RigError::NotClean`].

@@ -18,12 +18,10 @@ use protocol::ScanPlan;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::{require_clean, Board, Camera, Projector, RigError};
-use crate::board::{BoardClient, BoardError, ClientConfig, ScanOutcome, SerialTransport};
+use super::serial_board::SerialBoard;
+use super::{slots_per_frame, Board, Camera, Projector, RigError};
+use crate::board::{ClientConfig, ScanOutcome};
 use crate::raster::Raster;
-
-/// Delay from `Start` to the first cycle, board nanoseconds.
-const START_DELAY_NS: u32 = 1_000_000;
 
 /// How to build a [`SimRig`].
 #[derive(Clone, Debug)]
@@ -41,8 +39,8 @@ pub struct SimRigConfig {
 /// Board on a pty + twin cameras. Head `h` is the twin's camera `h` and
 /// projector `h`, wired as board head `h` of the plan.
 pub struct SimRig {
-    // Dropped after the client (field order): the board outlives its link.
-    client: BoardClient<SerialTransport>,
+    // Dropped before the board (field order): the board outlives its link.
+    board_link: SerialBoard,
     board: SimBoardHandle,
     twin: Arc<TwinRig>,
     sequences: Vec<Vec<Arc<Pattern>>>,
@@ -59,16 +57,10 @@ impl SimRig {
         let board =
             spawn_on_pty(config.board).map_err(|e| RigError::Sim(format!("board pty: {e}")))?;
         let path = board.path().unwrap_or(Path::new("")).to_path_buf();
-        let transport = SerialTransport::open(&path, 115_200).map_err(BoardError::from)?;
-        let (client, info) = BoardClient::connect(transport, config.client)?;
-        tracing::info!(
-            board_id = format_args!("{:#x}", info.board_id),
-            port = %path.display(),
-            "simulated sync board connected"
-        );
+        let board_link = SerialBoard::open(&path, config.client)?;
         let heads = twin.rig().cameras.len();
         Ok(SimRig {
-            client,
+            board_link,
             board,
             sequences: vec![Vec::new(); twin.rig().projectors.len()],
             twin,
@@ -158,21 +150,8 @@ fn check_sequencing(
 
 impl Board for SimRig {
     fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError> {
-        self.slots_per_frame = (0..self.slots_per_frame.len())
-            .map(|h| {
-                let one_cycle: Vec<usize> = plan
-                    .exposures()
-                    .filter(|e| e.entry.heads.contains(h))
-                    .map(|e| e.slots.len())
-                    .collect();
-                one_cycle.repeat(plan.repeat_count as usize)
-            })
-            .collect();
-        let outcome = self.client.run_plan(plan, START_DELAY_NS, |event| {
-            tracing::debug!(?event, "board event");
-        })?;
-        require_clean(&outcome)?;
-        Ok(outcome)
+        self.slots_per_frame = slots_per_frame(plan, self.slots_per_frame.len());
+        self.board_link.run_plan(plan)
     }
 }
 

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use hil_sim::twin::Rig;
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion};
 
 use super::twin_truth;
 use crate::calibration::truth_error::{rig_error, RigTruthError};
@@ -145,13 +145,12 @@ pub fn resolve(
     })
 }
 
-/// A calibration [`Pose`] (`x_to = R x_from + t`) as an isometry.
+/// A calibration [`Pose`] (`x_to = R x_from + t`) as an isometry (the
+/// rotation re-orthonormalised through a quaternion).
 pub fn isometry_from_pose(p: &Pose) -> Isometry3<f64> {
-    // The rig file validated R as a proper rotation (defect < 1e-6).
-    let rotation = Rotation3::from_matrix_unchecked(p.rotation);
     Isometry3::from_parts(
         Translation3::from(p.translation_m),
-        UnitQuaternion::from_rotation_matrix(&rotation),
+        UnitQuaternion::from_matrix(&p.rotation),
     )
 }
 

@@ -46,6 +46,15 @@ pub fn capture<R: Board + Projector + Camera>(
     }
 }
 
+/// Patterns as the projector should receive them: pre-compensated for its
+/// response when the config asks.
+fn for_projector(mut patterns: Vec<Raster<f32>>, config: &ScanConfig) -> Vec<Raster<f32>> {
+    if let Some(gamma) = config.precompensate_gamma {
+        plan::precompensate_gamma(&mut patterns, gamma);
+    }
+    patterns
+}
+
 fn run(rig: &mut impl Board, plan: &protocol::ScanPlan, what: &str) -> Result<(), ScanError> {
     let outcome = rig.run_plan(plan)?;
     tracing::info!(
@@ -63,7 +72,10 @@ fn sequential<R: Board + Projector + Camera>(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Captured, ScanError> {
     let count = config.periods_px.len() * config.steps;
-    let patterns = plan::fringe_sequence(config.projector_px, &config.periods_px, config.steps);
+    let patterns = for_projector(
+        plan::fringe_sequence(config.projector_px, &config.periods_px, config.steps),
+        config,
+    );
     let mut raw = Vec::new();
     for (h, heads) in [HeadSet::A, HeadSet::B].into_iter().enumerate() {
         let name = ["capture A", "capture B"][h];
@@ -89,7 +101,10 @@ fn simultaneous<R: Board + Projector + Camera>(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Captured, ScanError> {
     let count = config.periods_px.len() * config.steps;
-    let patterns = plan::fringe_sequence(config.projector_px, &config.periods_px, config.steps);
+    let patterns = for_projector(
+        plan::fringe_sequence(config.projector_px, &config.periods_px, config.steps),
+        config,
+    );
     progress(Progress::Stage {
         name: "capture A+B",
         total: 3,
@@ -131,7 +146,10 @@ fn multiplexed<R: Board + Projector + Camera>(
     });
     for (h, bin) in [bins.bin_a(), bins.bin_b()].into_iter().enumerate() {
         let shifts: Vec<f64> = (0..n).map(|k| phase_shift_rad(bin, k, n)).collect();
-        let patterns = plan::shifted_fringes(config.projector_px, &config.periods_px, &shifts);
+        let patterns = for_projector(
+            plan::shifted_fringes(config.projector_px, &config.periods_px, &shifts),
+            config,
+        );
         rig.load_sequence(h, &patterns)?;
     }
     run(

@@ -117,6 +117,50 @@ pub fn pixel_accuracy(
     }
 }
 
+/// Per-pixel accuracy over a subset of a head's pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MaskedAccuracy {
+    /// Pixels in the subset (the truth's count, whatever was reconstructed).
+    pub pixels: usize,
+    /// Valid reconstructed pixels in the subset.
+    pub points: usize,
+    /// RMS distance of those points to their pixels' true points, metres
+    /// (NaN when there are none).
+    pub rmse_m: f64,
+}
+
+/// The per-pixel error (as in [`pixel_accuracy`]) over the valid pixels
+/// where `mask` holds: e.g. the truth's overlap (pixels lit by both
+/// projectors), where the capture modes differ.
+pub fn masked_accuracy(
+    recon: &Reconstruction,
+    truth: &CameraGeometry,
+    head_from_world: &Isometry3<f64>,
+    mask: &[bool],
+) -> MaskedAccuracy {
+    let errors: Vec<f64> = recon
+        .pixels
+        .data
+        .iter()
+        .zip(&truth.point_m)
+        .zip(mask)
+        .filter(|((px, t), &m)| m && px.status == PixelStatus::Valid && t[0].is_finite())
+        .map(|((px, t), _)| {
+            let p = Vector3::new(
+                px.point_m[0] as f64,
+                px.point_m[1] as f64,
+                px.point_m[2] as f64,
+            );
+            (p - to_frame(head_from_world, t)).norm()
+        })
+        .collect();
+    MaskedAccuracy {
+        pixels: mask.iter().filter(|&&m| m).count(),
+        points: errors.len(),
+        rmse_m: rms(&errors),
+    }
+}
+
 fn rms(values: &[f64]) -> f64 {
     if values.is_empty() {
         return f64::NAN;

@@ -1,23 +1,29 @@
 //! A whole scan: plan -> capture -> reconstruct -> fuse -> measure.
 //!
 //! ```text
-//! rig file (`calibrate`) or the twin's truth ──> RigCalibration (per head frame)
+//! RigCalibration (a rig file from `calibrate`; sim default: the twin's truth)
 //! per head (sequential mode: head A alone, then head B alone):
 //!   fringe set ──Projector::load_sequence──> DMD table
 //!   plan (one pattern per exposure) ──Board::run_plan──> board-clock timeline
 //!   ──Camera::take_frames──> one frame per trigger ──Reconstructor──> cloud
 //! clouds A, B ──fusion::fuse_heads (ICP from the calibrated B->A)──> fused cloud
-//! every cloud ──truth_frame (rigid fit of its frame)──metrics (twin ground truth)──> RMSE, coverage
+//! every cloud ──truth_frame (rigid fit of its frame)──metrics (twin ground truth,
+//!   when there is one)──> RMSE, coverage
 //! ```
 //!
-//! [`run_sim`] does it all on the simulated rig and returns a [`ScanResult`]
-//! in memory; [`output::write_scan`] writes it (every file via a temporary
-//! and a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
+//! [`run_on_rig`] does it on any rig ([`crate::rig`]'s traits) with a given
+//! calibration and an optional ground truth; [`run_sim`] builds the
+//! simulated rig and the twin's truth around it; on hardware the caller
+//! builds a [`crate::rig::hardware::HardwareRig`] and passes no truth (the
+//! report's truth figures are then null). Either returns a [`ScanResult`] in
+//! memory; [`output::write_scan`] writes it (every file via a temporary and
+//! a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
 
 pub mod calibration_source;
 pub mod capture;
 mod clouds;
 mod fuse;
+pub mod measure;
 pub mod metrics;
 pub mod output;
 pub mod plan;
@@ -30,19 +36,21 @@ use std::time::Instant;
 use hil_sim::board::SimBoardConfig;
 use hil_sim::twin::scenes::{built_in, Detail};
 use hil_sim::twin::{SensorModel, TwinError, TwinRig};
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::Isometry3;
 
 use crate::board::ClientConfig;
+use crate::calibration::RigCalibration;
 use crate::fusion::{FusionError, IcpResult};
 use crate::patterns::three_pitch_periods_px;
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
 use crate::rig::sim::{SimRig, SimRigConfig};
-use crate::rig::RigError;
+use crate::rig::{Board, Camera, Projector, RigError};
 pub use calibration_source::{CalibrationSource, UsedCalibration};
-use clouds::{from_fusion, points_f64, transformed};
-use metrics::{PixelAccuracy, Sample};
+use clouds::{from_fusion, transformed};
+pub use measure::GroundTruth;
+use metrics::PixelAccuracy;
 
 /// How the two heads share time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -57,7 +65,8 @@ pub enum Mode {
     SimultaneousMultiplexed,
 }
 
-/// Everything a simulated scan needs.
+/// Everything a scan needs besides the rig and its calibration (the
+/// scene, seed and board settings serve the simulated rig only).
 #[derive(Clone, Debug)]
 pub struct ScanConfig {
     /// Built-in twin scene with two heads (e.g. `large-part`).
@@ -72,13 +81,23 @@ pub struct ScanConfig {
     pub periods_px: Vec<f64>,
     /// Phase steps per period.
     pub steps: usize,
+    /// Camera noise at half scale, frame units (what the reconstruction's
+    /// noise prediction and order checks assume).
+    pub noise_sigma: f32,
     /// Seed of device jitter and sensor noise.
     pub seed: u64,
     /// Simulated board faults (for failure tests).
     pub board: SimBoardConfig,
     /// Timeouts of the board client.
     pub client: ClientConfig,
-    /// The calibration to reconstruct with (default: the twin's truth).
+    /// The simulated projectors' intensity response, displayed grey g ->
+    /// g^gamma (twin only; 1 = a DMD in pattern mode, about 2.2 through a
+    /// video input).
+    pub sim_projector_gamma: f64,
+    /// Projector response the patterns are pre-compensated for (each grey
+    /// level g sent as g^(1/gamma)); `None` sends linear patterns.
+    pub precompensate_gamma: Option<f64>,
+    /// The calibration a simulated scan reconstructs with (default: the twin's truth).
     pub calibration: CalibrationSource,
 }
 
@@ -94,12 +113,15 @@ impl ScanConfig {
             projector_px: (1280, 800),
             periods_px: default_periods_px(1280),
             steps: 4,
+            noise_sigma: noise_sigma(&sim_sensor()),
             seed: 1,
             board: SimBoardConfig::default(),
             client: ClientConfig {
                 attempt_timeout: std::time::Duration::from_secs(2),
                 attempts: 3,
             },
+            sim_projector_gamma: 1.0,
+            precompensate_gamma: None,
             calibration: CalibrationSource::TwinTruth,
         }
     }
@@ -145,6 +167,17 @@ pub enum ScanError {
         /// Projectors in its rig.
         projectors: usize,
     },
+    /// A dual-head scan needs a calibration of two heads and the pose
+    /// between them.
+    #[error("the calibration has {heads} head(s) (or no head_to_head pose); a dual-head scan needs 2 heads and head_to_head")]
+    NotDualHeadCalibration {
+        /// Heads in the calibration.
+        heads: usize,
+    },
+    /// Simultaneous mode masks the aliased overlap with the twin's truth
+    /// overlap mask; without a twin (hardware) there is none.
+    #[error("PLACEHOLDER: simultaneous mode needs the digital twin's overlap mask to mask aliased pixels (no de-aliaser yet); on hardware use sequential or simultaneous-multiplexed")]
+    NoAliasMask,
     /// Demultiplexing a camera's frames failed.
     #[error("demultiplex head {head}")]
     Demultiplex {
@@ -156,6 +189,12 @@ pub enum ScanError {
     /// The calibration file is unusable (checked before any capture).
     #[error("calibration")]
     Calibration(#[from] calibration_source::CalibrationSourceError),
+    /// A pre-compensation gamma that is not a positive finite number.
+    #[error("pre-compensation gamma {gamma} is not a positive finite number")]
+    BadGamma {
+        /// The value given.
+        gamma: f64,
+    },
     /// The plan could not be built.
     #[error("plan")]
     Plan(#[from] plan::PlanBuildError),
@@ -178,13 +217,16 @@ pub enum ScanError {
     Output(#[from] output::OutputError),
 }
 
-/// Runs [`run_sim`] and, only when it succeeded, writes the result into
-/// `dir` ([`output::write_scan`]): a failed scan leaves no `scan.ply`.
+/// Removes an earlier run's outputs from `dir` ([`output::remove_stale`]),
+/// runs [`run_sim`] and, only when it succeeded, writes the result into
+/// `dir` ([`output::write_scan`]): a failed scan leaves no `scan.ply` or
+/// `report.json`, neither its own nor an older one.
 pub fn scan_to_dir(
     config: &ScanConfig,
     dir: &std::path::Path,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<crate::io::report::ScanReport, ScanError> {
+    output::remove_stale(dir)?;
     let result = run_sim(config, progress)?;
     Ok(output::write_scan(dir, &result)?)
 }
@@ -214,13 +256,25 @@ pub struct HeadResult {
     pub first_frame: Raster<f32>,
     /// Per-pixel reconstruction, head frame.
     pub reconstruction: Reconstruction,
-    /// The cloud moved into head A's frame (the fused frame).
+    /// The cloud moved into head A's frame (the fused frame) by the B->A
+    /// pose fusion used, so it lines up with the fused cloud.
     pub cloud_in_a: PointCloud,
+    /// Figures against the ground truth (`None` on hardware).
+    pub truth: Option<HeadTruth>,
+}
+
+/// One head's figures against the ground truth.
+#[derive(Clone, Debug)]
+pub struct HeadTruth {
     /// Per-pixel error map against the truth, metres (NaN where not valid).
     pub error_m: Raster<f32>,
     /// Per-pixel accuracy.
     pub accuracy: PixelAccuracy,
-    /// Point-to-plane RMSE against the true surface, metres.
+    /// Per-pixel accuracy on the overlap: pixels whose surface point both
+    /// projectors light (the twin's truth), where the modes differ.
+    pub overlap: metrics::MaskedAccuracy,
+    /// Point-to-plane RMSE against the true surface, metres (the head's
+    /// cloud moved into head A's frame by the TRUE pose: the head alone).
     pub plane_rmse_m: f64,
     /// Coverage of the measurable object surface.
     pub coverage: f64,
@@ -236,6 +290,13 @@ pub struct FusedResult {
     /// Registration of B onto A (`None` when the heads share no surface,
     /// as in simultaneous mode with the aliased overlap masked out).
     pub icp: Option<IcpResult>,
+    /// Figures against the ground truth (`None` on hardware).
+    pub truth: Option<FusedTruth>,
+}
+
+/// The fused cloud's figures against the ground truth.
+#[derive(Clone, Debug)]
+pub struct FusedTruth {
     /// Point-to-plane RMSE against the true surface, metres.
     pub plane_rmse_m: f64,
     /// Coverage of the measurable object surface.
@@ -253,14 +314,17 @@ pub struct FusedResult {
 pub struct ScanResult {
     /// The configuration it ran with.
     pub config: ScanConfig,
-    /// The calibration it reconstructed with.
-    pub calibration: UsedCalibration,
+    /// Where the calibration came from (for the report).
+    pub calibration_source: String,
+    /// An estimated calibration's error against the twin's truth (`None`
+    /// with the truth itself, and on hardware).
+    pub calibration_vs_truth: Option<crate::calibration::truth_error::RigTruthError>,
     /// Heads A and B.
     pub heads: Vec<HeadResult>,
     /// The fused cloud.
     pub fused: FusedResult,
-    /// Samples of the measurable object surface.
-    pub surface_samples: usize,
+    /// Samples of the measurable object surface (`None` without a truth).
+    pub surface_samples: Option<usize>,
     /// Wall-clock time per stage, milliseconds, in order.
     pub timings_ms: Vec<(&'static str, f64)>,
     /// Loud caveats of this run (masked aliased pixels, ...).
@@ -273,6 +337,13 @@ struct Clock {
 }
 
 impl Clock {
+    fn start() -> Self {
+        Clock {
+            last: Instant::now(),
+            timings: Vec::new(),
+        }
+    }
+
     fn lap(&mut self, name: &'static str) {
         let now = Instant::now();
         let ms = (now - self.last).as_secs_f64() * 1e3;
@@ -282,20 +353,28 @@ impl Clock {
     }
 }
 
-/// Runs a dual-head scan on the simulated rig (board on a pty, twin cameras).
+/// Runs a dual-head scan on the simulated rig (board on a pty, twin
+/// cameras), reconstructing with the twin's true calibration and measuring
+/// against the twin's ground truth.
 pub fn run_sim(
     config: &ScanConfig,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<ScanResult, ScanError> {
-    let mut clock = Clock {
-        last: Instant::now(),
-        timings: Vec::new(),
-    };
+    let mut clock = Clock::start();
     let detail = Detail {
         camera: config.camera_px,
         projector: config.projector_px,
     };
-    let (scene, rig) = built_in(&config.scene, &detail)?;
+    if let Some(gamma) = config
+        .precompensate_gamma
+        .filter(|g| !(g.is_finite() && *g > 0.0))
+    {
+        return Err(ScanError::BadGamma { gamma });
+    }
+    let (scene, mut rig) = built_in(&config.scene, &detail)?;
+    for p in &mut rig.projectors {
+        p.gamma = config.sim_projector_gamma;
+    }
     if rig.cameras.len() != 2 || rig.projectors.len() != 2 {
         return Err(ScanError::NotDualHead {
             scene: config.scene.clone(),
@@ -310,11 +389,7 @@ pub fn run_sim(
         config.camera_px,
         config.projector_px,
     )?;
-    let calibration = &used.rig;
-    let is_object = metrics::object_ids(&scene);
     let twin = Arc::new(TwinRig::new(scene, rig)?);
-    let sensor = sim_sensor();
-    let noise_sigma = noise_sigma(&sensor);
     progress(Progress::Stage {
         name: "ray-cast cameras",
         total: 2,
@@ -329,17 +404,53 @@ pub fn run_sim(
         SimRigConfig {
             board: config.board.clone(),
             client: config.client,
-            sensor,
+            sensor: sim_sensor(),
             noise_seed: config.seed,
         },
     )?;
     clock.lap("setup");
+    let truth = GroundTruth::new(twin);
+    let mut result = run_on_rig(
+        &mut sim,
+        &used.rig,
+        &used.description,
+        Some(&truth),
+        config,
+        progress,
+    )?;
+    result.calibration_vs_truth = used.vs_truth;
+    result.timings_ms.splice(0..0, clock.timings);
+    Ok(result)
+}
 
-    let mut captured = capture::capture(&mut sim, config, progress)?;
+/// Runs a dual-head scan on any rig: capture -> reconstruct (with
+/// `calibration`, described for the report by `calibration_source`) ->
+/// fuse, and, when a ground `truth` exists (the twin), measure against it.
+/// Without one (hardware) the report's truth figures are null, and
+/// simultaneous mode is refused: its aliased-overlap mask comes from the
+/// twin.
+pub fn run_on_rig<R: Board + Projector + Camera>(
+    rig: &mut R,
+    calibration: &RigCalibration,
+    calibration_source: &str,
+    truth: Option<&GroundTruth>,
+    config: &ScanConfig,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<ScanResult, ScanError> {
+    let mut clock = Clock::start();
+    let (Some(a_to_b), 2) = (calibration.head_to_head, calibration.heads.len()) else {
+        return Err(ScanError::NotDualHeadCalibration {
+            heads: calibration.heads.len(),
+        });
+    };
+    if config.mode == Mode::Simultaneous && truth.is_none() {
+        return Err(ScanError::NoAliasMask);
+    }
+    let mut captured = capture::capture(rig, config, progress)?;
     clock.lap("capture");
     let mut warnings = Vec::new();
-    if config.mode == Mode::Simultaneous {
-        capture::mask_aliased_overlap(&mut captured, &twin, &mut warnings)?;
+    if let (Mode::Simultaneous, Some(truth)) = (config.mode, truth) {
+        capture::mask_aliased_overlap(&mut captured, &truth.twin, &mut warnings)?;
     }
 
     // Reconstruct each head in its own frame.
@@ -352,7 +463,7 @@ pub fn run_sim(
         let head_name = twin_truth::HEAD_NAMES[h];
         let mut rc_config = ReconstructConfig::new(config.periods_px.clone());
         rc_config.steps = captured.steps;
-        rc_config.noise_sigma = noise_sigma * captured.noise_factor;
+        rc_config.noise_sigma = config.noise_sigma * captured.noise_factor;
         let rc = Reconstructor::from_head(&calibration.heads[h], rc_config).map_err(|source| {
             ScanError::Reconstruct {
                 head: head_name,
@@ -378,7 +489,7 @@ pub fn run_sim(
         name: "fuse",
         total: 1,
     });
-    let a_from_b_calibrated: Isometry3<f64> = used.a_from_b();
+    let a_from_b_calibrated = calibration_source::isometry_from_pose(&a_to_b).inverse();
     let fused = fuse::fuse(
         &recons[0].cloud,
         &recons[1].cloud,
@@ -386,135 +497,67 @@ pub fn run_sim(
         config,
         &mut warnings,
     )?;
+    let a_from_b_used = fused
+        .icp
+        .as_ref()
+        .map_or(a_from_b_calibrated, |icp| icp.transform);
+    let fused_cloud = from_fusion(&fused.cloud);
     progress(Progress::Step);
     progress(Progress::Done);
     clock.lap("fuse");
 
-    // Measure against the truth, everything in head A's calibrated frame,
-    // each cloud's frame first fitted onto the truth (see truth_frame).
-    progress(Progress::Stage {
-        name: "measure",
-        total: 3,
-    });
-    let geometries: Vec<_> = (0..2).map(|h| twin.renderer(h)).collect::<Result<_, _>>()?;
-    let any_pixel = |g: &hil_sim::twin::CameraGeometry| -> Vec<bool> {
-        g.point_m.iter().map(|p| p[0].is_finite()).collect()
+    let measured = match truth {
+        Some(truth) => {
+            progress(Progress::Stage {
+                name: "measure",
+                total: 1,
+            });
+            let m = measure::measure(truth, &recons, &fused_cloud, &a_from_b_used, &mut warnings)?;
+            progress(Progress::Step);
+            progress(Progress::Done);
+            clock.lap("measure");
+            Some(m)
+        }
+        None => None,
     };
-    let fused_cloud = from_fusion(&fused.cloud);
-    let fused_pts = points_f64(&fused_cloud);
-    let true_a_from_world = twin_truth::head_from_world(twin.rig(), 0);
-    let truth_in_true_a: Vec<Sample> = geometries
-        .iter()
-        .flat_map(|g| metrics::samples(g.geometry(), &any_pixel(g.geometry()), &true_a_from_world))
-        .collect();
-    let fused_fit = truth_frame::fit_frame(
-        &fused_pts,
-        &truth_in_true_a,
-        &true_a_from_world,
-        "fused cloud",
-        &mut warnings,
-    );
-    let a_from_world = fused_fit.frame_from_world;
-    let mut surface: Vec<Sample> = Vec::new();
-    let mut all_surface: Vec<Sample> = Vec::new();
-    for (h, g) in geometries.iter().enumerate() {
-        let g = g.geometry();
-        let own = metrics::own_object_pixels(g, h, &is_object);
-        surface.extend(metrics::samples(g, &own, &a_from_world));
-        all_surface.extend(metrics::samples(g, &any_pixel(g), &a_from_world));
-    }
-    let mut heads = Vec::new();
-    for (h, recon) in recons.into_iter().enumerate() {
-        let g = geometries[h].geometry();
-        let true_head_from_world = twin_truth::head_from_world(twin.rig(), h);
-        let frame_fit = truth_frame::fit_frame(
-            &points_f64(&recon.cloud),
-            &metrics::samples(g, &any_pixel(g), &true_head_from_world),
-            &true_head_from_world,
-            &format!("head {}", twin_truth::HEAD_NAMES[h]),
-            &mut warnings,
-        );
-        let head_from_world = frame_fit.frame_from_world;
-        let accuracy = metrics::pixel_accuracy(&recon, g, &head_from_world, h, &is_object);
-        let a_from_head = a_from_world * head_from_world.inverse();
-        let cloud_in_a = transformed(&recon.cloud, &a_from_head);
-        let pts = points_f64(&cloud_in_a);
-        let error_m = error_map(&recon, g, &head_from_world);
-        heads.push(HeadResult {
-            name: twin_truth::HEAD_NAMES[h],
-            first_frame: captured.raw[h][0].clone(),
-            plane_rmse_m: metrics::point_to_plane_rmse(&pts, &all_surface)?,
-            coverage: metrics::coverage(&pts, &surface)?,
-            reconstruction: recon,
-            cloud_in_a,
-            error_m,
-            accuracy,
-            frame_fit,
-        });
-        progress(Progress::Step);
-    }
-    let true_a_from_b = twin_truth::b_from_a(twin.rig()).inverse();
-    let used_pose = fused
-        .icp
-        .as_ref()
-        .map_or(a_from_b_calibrated, |icp| icp.transform);
-    // The pose used maps B's calibrated frame into A's; in true frames:
-    let used_in_true_frames = heads[0].frame_fit.true_from_estimate
-        * used_pose
-        * heads[1].frame_fit.true_from_estimate.inverse();
-    let diff = used_in_true_frames * true_a_from_b.inverse();
-    let fused = FusedResult {
-        plane_rmse_m: metrics::point_to_plane_rmse(&fused_pts, &all_surface)?,
-        coverage: metrics::coverage(&fused_pts, &surface)?,
-        cloud: fused_cloud,
-        icp: fused.icp,
-        residual_pose_error: (
-            diff.rotation.angle().to_degrees(),
-            diff.translation.vector.norm(),
+    let (mut head_truths, fused_truth, surface_samples) = match measured {
+        Some(m) => (
+            m.heads.into_iter().map(Some).collect(),
+            Some(m.fused),
+            Some(m.surface_samples),
         ),
-        frame_fit: fused_fit,
+        None => (vec![None, None], None, None),
     };
-    progress(Progress::Step);
-    progress(Progress::Done);
-    clock.lap("measure");
+    let heads = recons
+        .into_iter()
+        .enumerate()
+        .map(|(h, recon)| {
+            let a_from_head = if h == 0 {
+                Isometry3::identity()
+            } else {
+                a_from_b_used
+            };
+            HeadResult {
+                name: twin_truth::HEAD_NAMES[h],
+                first_frame: captured.raw[h][0].clone(),
+                cloud_in_a: transformed(&recon.cloud, &a_from_head),
+                reconstruction: recon,
+                truth: head_truths[h].take(),
+            }
+        })
+        .collect();
     Ok(ScanResult {
         config: config.clone(),
-        calibration: used,
+        calibration_source: calibration_source.to_string(),
+        calibration_vs_truth: None,
         heads,
-        fused,
-        surface_samples: surface.len(),
+        fused: FusedResult {
+            cloud: fused_cloud,
+            icp: fused.icp,
+            truth: fused_truth,
+        },
+        surface_samples,
         timings_ms: clock.timings,
         warnings,
     })
-}
-
-/// |reconstructed - true| per pixel, metres (NaN where either is missing).
-fn error_map(
-    recon: &Reconstruction,
-    truth: &hil_sim::twin::CameraGeometry,
-    head_from_world: &Isometry3<f64>,
-) -> Raster<f32> {
-    let data = recon
-        .pixels
-        .data
-        .iter()
-        .zip(&truth.point_m)
-        .map(|(px, t)| {
-            if !(px.point_m[0].is_finite() && t[0].is_finite()) {
-                return f32::NAN;
-            }
-            let tt = head_from_world * nalgebra::Point3::new(t[0] as f64, t[1] as f64, t[2] as f64);
-            let p = Vector3::new(
-                px.point_m[0] as f64,
-                px.point_m[1] as f64,
-                px.point_m[2] as f64,
-            );
-            (p - tt.coords).norm() as f32
-        })
-        .collect();
-    Raster {
-        width: recon.pixels.width,
-        height: recon.pixels.height,
-        data,
-    }
 }

@@ -4,6 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use super::{Mode, ScanResult};
+use crate::io::cloud_render::{render_cloud, splat_radius_for, CloudView};
+use crate::io::images::save_rgb_png;
 use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
@@ -23,6 +25,14 @@ pub enum OutputError {
         /// Why.
         source: std::io::Error,
     },
+    /// An earlier run's output could not be removed.
+    #[error("removing the earlier run's {path}: {source}")]
+    Stale {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
     /// A picture.
     #[error(transparent)]
     Image(#[from] ImageError),
@@ -32,6 +42,50 @@ pub enum OutputError {
     /// The report.
     #[error(transparent)]
     Report(#[from] ReportError),
+}
+
+/// Every file [`write_scan`] writes into its folder.
+pub fn output_files() -> Vec<String> {
+    let mut files: Vec<String> = ["scan.ply", "report.json", "head_a.ply", "head_b.ply"]
+        .map(String::from)
+        .to_vec();
+    for kind in ["camera", "phase", "depth", "error"] {
+        for head in ["a", "b"] {
+            files.push(format!("{kind}_{head}.png"));
+        }
+    }
+    files.extend(CLOUD_VIEWS.map(|(name, ..)| format!("cloud_{name}.png")));
+    files
+}
+
+/// Removes an earlier run's outputs ([`output_files`], nothing else) from
+/// `dir`, so a scan that fails leaves no old `scan.ply` or `report.json`
+/// that could be read as its result. A missing folder or file is fine.
+pub fn remove_stale(dir: &Path) -> Result<(), OutputError> {
+    for name in output_files() {
+        let path = dir.join(name);
+        match std::fs::remove_file(&path) {
+            Ok(()) => tracing::info!(path = %path.display(), "removed an earlier run's output"),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(source) => return Err(OutputError::Stale { path, source }),
+        }
+    }
+    Ok(())
+}
+
+/// The frame fits of the heads and the fused cloud (`None` without a truth).
+fn frame_fits(scan: &ScanResult) -> Option<FrameFitReport> {
+    let offset = |fit: &super::truth_frame::FrameFit| FrameOffset {
+        rotation_deg: fit.rotation_deg(),
+        translation_um: fit.translation_m() * 1e6,
+    };
+    let heads = scan
+        .heads
+        .iter()
+        .map(|h| h.truth.as_ref().map(|t| offset(&t.frame_fit)))
+        .collect::<Option<Vec<_>>>()?;
+    let fused = offset(&scan.fused.truth.as_ref()?.frame_fit);
+    Some(FrameFitReport { heads, fused })
 }
 
 /// The report of a finished scan.
@@ -50,39 +104,48 @@ pub fn report(scan: &ScanResult) -> ScanReport {
         projector_px: c.projector_px,
         periods_px: c.periods_px.clone(),
         steps: c.steps,
-        calibration: scan.calibration.description.clone(),
-        calibration_vs_truth: scan.calibration.vs_truth.clone(),
-        truth_frame_fit: FrameFitReport {
-            heads: scan.heads.iter().map(|h| offset(&h.frame_fit)).collect(),
-            fused: offset(&scan.fused.frame_fit),
-        },
-        truth_note: "every cloud is measured after a rigid fit of its calibrated frame onto the true camera frame \
+        calibration: scan.calibration_source.clone(),
+        calibration_vs_truth: scan.calibration_vs_truth.clone(),
+        truth_frame_fit: frame_fits(scan),
+        truth_note: if scan.surface_samples.is_none() {
+            "no ground truth (hardware): rmse, coverage and pose-error figures are null".into()
+        } else {
+            "every cloud is measured after a rigid fit of its calibrated frame onto the true camera frame \
             (truth_frame_fit; shape and scale errors stay); \
             rmse_um per head: each valid pixel's point vs the true point of that pixel; \
             plane_rmse_um and fused.rmse_um: each point vs the tangent plane of its nearest true surface sample; \
             coverage: fraction of the measurable object surface (pixels of either camera seeing the object, \
-            all scene objects but the background wall, lit by that camera's own projector) with a cloud point within 1 mm"
-            .into(),
+            all scene objects but the background wall, lit by that camera's own projector) with a cloud point within 1 mm; \
+            overlap_rmse_um: rmse_um over the pixels whose surface point both projectors light (twin truth)"
+            .into()
+        },
         surface_samples: scan.surface_samples,
         heads: scan
             .heads
             .iter()
-            .map(|h| HeadReport {
-                name: h.name.into(),
-                points: h.accuracy.points,
-                rmse_um: h.accuracy.rmse_m * um,
-                median_error_um: h.accuracy.median_m * um,
-                predicted_rms_um: h.accuracy.predicted_rms_m * um,
-                outliers_over_1mm: h.accuracy.outliers,
-                plane_rmse_um: h.plane_rmse_m * um,
-                coverage: h.coverage,
-                own_pixel_coverage: h.accuracy.own_coverage,
+            .map(|h| {
+                let t = h.truth.as_ref();
+                HeadReport {
+                    name: h.name.into(),
+                    // Without a truth: every point of the cloud.
+                    points: t.map_or(h.reconstruction.cloud.len(), |t| t.accuracy.points),
+                    rmse_um: t.map(|t| t.accuracy.rmse_m * um),
+                    median_error_um: t.map(|t| t.accuracy.median_m * um),
+                    predicted_rms_um: t.map(|t| t.accuracy.predicted_rms_m * um),
+                    outliers_over_1mm: t.map(|t| t.accuracy.outliers),
+                    plane_rmse_um: t.map(|t| t.plane_rmse_m * um),
+                    coverage: t.map(|t| t.coverage),
+                    own_pixel_coverage: t.map(|t| t.accuracy.own_coverage),
+                    overlap_pixels: t.map(|t| t.overlap.pixels),
+                    overlap_points: t.map(|t| t.overlap.points),
+                    overlap_rmse_um: t.map(|t| t.overlap.rmse_m * um),
+                }
             })
             .collect(),
         fused: FusedReport {
             points: scan.fused.cloud.len(),
-            rmse_um: scan.fused.plane_rmse_m * um,
-            coverage: scan.fused.coverage,
+            rmse_um: scan.fused.truth.as_ref().map(|t| t.plane_rmse_m * um),
+            coverage: scan.fused.truth.as_ref().map(|t| t.coverage),
             icp: scan.fused.icp.as_ref().map(|icp| IcpReport {
                 rotation_deg: icp.rotation_correction_deg,
                 translation_um: icp.translation_correction_m * um,
@@ -91,23 +154,30 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                 iterations: icp.iterations,
                 converged: icp.converged,
             }),
-            pose_error_vs_truth_deg: scan.fused.residual_pose_error.0,
-            pose_error_vs_truth_um: scan.fused.residual_pose_error.1 * um,
+            pose_error_vs_truth_deg: scan.fused.truth.as_ref().map(|t| t.residual_pose_error.0),
+            pose_error_vs_truth_um: scan
+                .fused
+                .truth
+                .as_ref()
+                .map(|t| t.residual_pose_error.1 * um),
         },
         warnings: scan.warnings.clone(),
-        timings_ms: scan.timings_ms.iter().map(|(n, ms)| (n.to_string(), *ms)).collect(),
+        timings_ms: scan
+            .timings_ms
+            .iter()
+            .map(|(n, ms)| (n.to_string(), *ms))
+            .collect(),
     }
 }
 
-fn offset(fit: &super::truth_frame::FrameFit) -> FrameOffset {
-    FrameOffset {
-        rotation_deg: fit.rotation_deg(),
-        translation_um: fit.translation_m() * 1e6,
-    }
-}
+/// The two views of the fused cloud's pictures (name, yaw, pitch in
+/// degrees, about head A's frame): nearly head A's line of sight, and from
+/// the right and above, where the relief shows.
+pub const CLOUD_VIEWS: [(&str, f64, f64); 2] = [("front", 0.0, 0.0), ("oblique", -35.0, 25.0)];
 
 /// Writes `dir/{camera,phase,depth,error}_{a,b}.png` (error: black = exact,
-/// white = 500 um or more), `head_a.ply`,
+/// white = 500 um or more; only with a ground truth), `cloud_{front,oblique}.png`
+/// (the fused cloud, Lambert-shaded from PCA normals), `head_a.ply`,
 /// `head_b.ply`, `report.json`, then `scan.ply`.
 pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError> {
     std::fs::create_dir_all(dir).map_err(|source| OutputError::Dir {
@@ -133,28 +203,93 @@ pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputErr
             &normalise_for_view(&depth),
             true,
         )?;
-        // Error picture: 0 = exact, white = 500 um or more.
-        let err = Raster {
-            width: h.error_m.width,
-            height: h.error_m.height,
-            data: h
-                .error_m
-                .data
-                .iter()
-                .map(|e| {
-                    if e.is_finite() {
-                        (e / 500e-6).min(1.0)
-                    } else {
-                        0.0
-                    }
-                })
-                .collect(),
-        };
-        save_gray_png(&dir.join(format!("error_{tag}.png")), &err, false)?;
+        if let Some(truth) = &h.truth {
+            // Error picture: 0 = exact, white = 500 um or more.
+            let err = Raster {
+                width: truth.error_m.width,
+                height: truth.error_m.height,
+                data: truth
+                    .error_m
+                    .data
+                    .iter()
+                    .map(|e| {
+                        if e.is_finite() {
+                            (e / 500e-6).min(1.0)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect(),
+            };
+            save_gray_png(&dir.join(format!("error_{tag}.png")), &err, false)?;
+        }
         write_ply(&dir.join(format!("head_{tag}.ply")), &h.cloud_in_a)?;
     }
+    write_cloud_pictures(dir, &scan.fused.cloud, scan.config.camera_px)?;
     let report = report(scan);
     write_report(&dir.join("report.json"), &report)?;
     write_ply(&dir.join("scan.ply"), &scan.fused.cloud)?;
     Ok(report)
+}
+
+/// `cloud_{view}.png` for each of [`CLOUD_VIEWS`]: normals from the
+/// cloud, else estimated by PCA (12 neighbours; the renderer ignores their
+/// sign), else none (shaded by depth) when the cloud is too small for PCA.
+fn write_cloud_pictures(
+    dir: &Path,
+    cloud: &crate::point_cloud::PointCloud,
+    size_px: (u32, u32),
+) -> Result<(), OutputError> {
+    let estimated: Option<Vec<[f32; 3]>> = match &cloud.normals {
+        Some(_) => None,
+        None => crate::fusion::estimate_normals(
+            &super::clouds::points_f64(cloud),
+            12,
+            &nalgebra::Vector3::zeros(),
+        )
+        .ok()
+        .map(|ns| {
+            ns.iter()
+                .map(|n| [n.x as f32, n.y as f32, n.z as f32])
+                .collect()
+        }),
+    };
+    let normals = cloud.normals.as_deref().or(estimated.as_deref());
+    let splat = splat_radius_for(cloud.len(), size_px);
+    for (name, yaw_deg, pitch_deg) in CLOUD_VIEWS {
+        let picture = match CloudView::framing(&cloud.points_m, yaw_deg, pitch_deg, size_px) {
+            Some(view) => render_cloud(&cloud.points_m, normals, &view, splat),
+            None => Raster::filled(
+                size_px.0 as usize,
+                size_px.1 as usize,
+                crate::io::cloud_render::BACKGROUND,
+            ),
+        };
+        save_rgb_png(&dir.join(format!("cloud_{name}.png")), &picture)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_outputs_go_and_other_files_stay() {
+        let dir = std::env::temp_dir().join(format!("slscan-stale-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for name in ["scan.ply", "report.json", "cloud_front.png", "notes.txt"] {
+            std::fs::write(dir.join(name), b"old").unwrap();
+        }
+        remove_stale(&dir).unwrap();
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, ["notes.txt"]);
+        // Nothing there (or no folder at all) is fine.
+        remove_stale(&dir).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        remove_stale(&dir).unwrap();
+    }
 }

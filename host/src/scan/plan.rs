@@ -54,6 +54,22 @@ pub fn shifted_fringes(
     frames
 }
 
+/// Patterns pre-distorted for a projector whose intensity is g^gamma for
+/// a displayed grey g (the standard remedy for a video-input projector's
+/// response): each level becomes g^(1/gamma), re-quantised to 8 bits, so
+/// the light on the scene is the intended sinusoid again. Its harmonics
+/// would otherwise put head A's 2nd harmonic on head B's temporal bin in
+/// the multiplexed mode. (The double 8-bit rounding adds well under the
+/// 12-bit sensor's noise.)
+pub fn precompensate_gamma(patterns: &mut [Raster<f32>], gamma: f64) {
+    let inv = (1.0 / gamma) as f32;
+    for f in patterns {
+        f.data
+            .iter_mut()
+            .for_each(|v| *v = (v.max(0.0).powf(inv) * 255.0).round() / 255.0);
+    }
+}
+
 /// Why a plan cannot be built.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum PlanBuildError {
@@ -132,6 +148,26 @@ mod tests {
                 .expect("valid");
         }
         assert!(one_pattern_per_exposure(HeadSet::A, MAX_EXPOSURES + 1).is_err());
+    }
+
+    #[test]
+    fn precompensated_levels_come_back_linear_under_the_gamma() {
+        let mut f = fringe_sequence((256, 1), &[32.0], 4);
+        let want = f.clone();
+        precompensate_gamma(&mut f, 2.2);
+        for (got, want) in f.iter().zip(&want) {
+            for (g, w) in got.data.iter().zip(&want.data) {
+                // 8-bit rounding of g^(1/2.2) near g = 1 moves the light by
+                // up to 2.2 / 2 / 255.
+                assert!(
+                    (g.powf(2.2) - w).abs() <= 0.0045,
+                    "{g} -> {} vs {w}",
+                    g.powf(2.2)
+                );
+            }
+        }
+        // Mid-grey is sent brighter.
+        assert!(f[0].data[8] > want[0].data[8]);
     }
 
     #[test]

@@ -1,21 +1,29 @@
-//! `slscan scan`: plan, capture, reconstruct and fuse a dual-head scan.
-//!
-//! Only the simulated rig exists (`--sim`): hil-sim's board on a pty, the
-//! host's serial client, and cameras rendered by the digital twin.
+//! `slscan scan`: plan, capture, reconstruct and fuse a dual-head scan, on
+//! the simulated rig (`--sim`) or on hardware (`--port`, `--frames-from`,
+//! `--calibration`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use slscan::scan::{self, CalibrationSource, Mode, Progress, ScanConfig};
+use slscan::board::ClientConfig;
+use slscan::calibration::{read_rig, RigCalibration};
+use slscan::io::report::ScanReport;
+use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
+use slscan::rig::folder_projector::{FolderProjector, FolderProjectorHead, PatternDelivery};
+use slscan::rig::hardware::HardwareRig;
+use slscan::rig::serial_board::SerialBoard;
+use slscan::scan::{self, default_periods_px, CalibrationSource, Mode, Progress, ScanConfig};
 
 /// Options of `slscan scan`.
 #[derive(clap::Args)]
+#[command(after_long_help = HARDWARE_HELP)]
 pub struct Args {
     /// Scan the simulated rig (board on a pty, digital-twin cameras).
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["port", "frames_from"])]
     sim: bool,
-    /// Built-in twin scene with two heads.
+    /// Built-in twin scene with two heads (--sim).
     #[arg(long, default_value = "large-part")]
     scene: String,
     /// How the heads share time.
@@ -24,25 +32,87 @@ pub struct Args {
     /// Output folder (scan.ply, head_a.ply, head_b.ply, report.json, PNGs).
     #[arg(long)]
     out: PathBuf,
-    /// Camera width, pixels.
+    /// Camera width, pixels (--sim; on hardware the calibration's).
     #[arg(long, default_value_t = 640)]
     width: u32,
-    /// Camera height, pixels.
+    /// Camera height, pixels (--sim; on hardware the calibration's).
     #[arg(long, default_value_t = 480)]
     height: u32,
-    /// Seed of device jitter and sensor noise.
+    /// Seed of device jitter and sensor noise (--sim).
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Fringe periods, projector pixels, finest first (4 steps each);
     /// default: seed 004's three pitches over the DMD width (S = 64).
     #[arg(long, value_delimiter = ',')]
     periods: Option<Vec<f64>>,
-    /// Rig file to reconstruct with and to seed the ICP from (`slscan
-    /// calibrate --sim --scene NAME --out FILE`); default with --sim: the
-    /// digital twin's TRUE devices (labelled so in the report).
-    #[arg(long, value_name = "FILE")]
+    /// Hardware: the sync board's serial port, e.g. /dev/ttyACM0.
+    #[arg(long)]
+    port: Option<PathBuf>,
+    /// Hardware: the folder the camera vendor's software saves frames into,
+    /// one subfolder per head named as in the calibration (A/, B/).
+    #[arg(long)]
+    frames_from: Option<PathBuf>,
+    /// The rig calibration file (slscan-rig JSON, two heads): required on
+    /// hardware; with --sim, reconstruct with it and seed the ICP from it
+    /// (`slscan calibrate --sim --scene NAME --out FILE`) instead of the
+    /// digital twin's TRUE devices (the default, labelled so in the report).
+    #[arg(long)]
     calibration: Option<PathBuf>,
+    /// Hardware: where the DMD pattern sets are written (or, with
+    /// --patterns-preloaded, checked): PATTERNS/<head>/pattern_NNN.png.
+    /// Default: OUT/dmd_patterns.
+    #[arg(long)]
+    patterns_dir: Option<PathBuf>,
+    /// Hardware: the DMDs already hold the pattern sets, loaded from
+    /// --patterns-dir; check the folder matches instead of writing it.
+    #[arg(long)]
+    patterns_preloaded: bool,
+    /// Hardware: bits per sample the cameras deliver (e.g. 12 in 16-bit
+    /// files); default: the files' own depth (8 or 16).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=16))]
+    bit_depth: Option<u8>,
+    /// Hardware: seconds to wait for a head's frames after the board ran.
+    #[arg(long, default_value_t = 10.0)]
+    frame_timeout_s: f64,
+    /// Hardware: milliseconds between looks at the frames folder.
+    #[arg(long, default_value_t = 50)]
+    frame_poll_ms: u64,
+    /// Hardware: milliseconds a head's full frame count must hold before the
+    /// frames are read (catches a late extra frame; longer than the camera
+    /// software's gap between two saves).
+    #[arg(long, default_value_t = 500)]
+    frame_settle_ms: u64,
+    /// Hardware: camera noise at half scale, in [0, 1] frame units (feeds
+    /// the reconstruction's noise prediction and fringe-order checks).
+    #[arg(long, default_value_t = 0.01)]
+    noise_sigma: f32,
+    /// The simulated projectors' response: intensity = grey^gamma
+    /// (1 = DMD pattern mode; about 2.2 through a video input).
+    #[arg(long, default_value_t = 1.0)]
+    sim_projector_gamma: f64,
+    /// Pre-compensate the patterns for a projector response of this gamma
+    /// (send grey^(1/gamma)).
+    #[arg(long)]
+    precompensate_gamma: Option<f64>,
 }
+
+const HARDWARE_HELP: &str = "\
+Hardware scan: slscan scan --port /dev/ttyACM0 --frames-from FRAMES --calibration rig.json --mode sequential --out DIR
+
+Cameras: the camera vendor's software (hardware-trigger mode, trigger from the sync board) saves one
+8- or 16-bit PNG/TIFF per trigger into FRAMES/<head>/ (FRAMES/A/, FRAMES/B/). Trigger order is file-name
+order with numbers compared as numbers (img_9 before img_10). Files already there when a run starts are
+ignored (the folder need not be emptied); hidden files and other extensions are ignored, so a tool that
+writes a temporary and renames is read once renamed; otherwise a file counts once its size stays the same
+over one poll interval. Each head must deliver exactly its trigger count within --frame-timeout-s, and
+the count must hold for --frame-settle-ms: fewer or more ends the scan with an error and no scan.ply.
+
+Projectors: PLACEHOLDER, no DMD driver. Each head's pattern set is written as PATTERNS/<head>/pattern_NNN.png
+for the DMD vendor's GUI to load (one pattern per trigger, in file order); with --patterns-preloaded the set is
+not written but checked against what the scan needs.
+
+No ground truth on hardware: report.json's rmse and coverage figures are null. Simultaneous mode needs the
+digital twin's overlap mask and is refused on hardware.";
 
 /// `--mode` values.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -57,63 +127,185 @@ enum ModeArg {
 
 /// Runs `slscan scan`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if !args.sim {
-        anyhow::bail!(
-            "PLACEHOLDER: only the simulated rig exists; pass --sim (no DMD or camera driver yet)"
-        );
-    }
-    let mut config = ScanConfig::new(&args.scene);
-    config.mode = match args.mode {
+    let mode = match args.mode {
         ModeArg::Sequential => Mode::Sequential,
         ModeArg::Simultaneous => Mode::Simultaneous,
         ModeArg::SimultaneousMultiplexed => Mode::SimultaneousMultiplexed,
     };
-    config.camera_px = (args.width, args.height);
-    config.seed = args.seed;
-    if let Some(periods) = args.periods {
-        config.periods_px = periods;
-    }
-    if let Some(path) = args.calibration {
-        config.calibration = CalibrationSource::File(path);
-    }
-    let style = ProgressStyle::with_template("{prefix:>18} [{bar:30}] {pos}/{len} {elapsed}")
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        .progress_chars("=> ");
-    let mut bar: Option<ProgressBar> = None;
-    let mut on_progress = |p: Progress| match p {
-        Progress::Stage { name, total } => {
-            let b = ProgressBar::new(total)
-                .with_style(style.clone())
-                .with_prefix(name);
-            bar = Some(b);
-        }
-        Progress::Step => {
-            if let Some(b) = &bar {
-                b.inc(1);
-            }
-        }
-        Progress::Done => {
-            if let Some(b) = bar.take() {
-                b.finish();
-            }
-        }
-    };
-    let report = scan::scan_to_dir(&config, &args.out, &mut on_progress).with_context(|| {
+    let mut bars = Bars::new();
+    let mut on_progress = |p: Progress| bars.on(p);
+    let failed = || {
         format!(
             "scan into {} failed; no scan.ply written",
             args.out.display()
         )
+    };
+    let report = if args.sim {
+        let mut config = ScanConfig::new(&args.scene);
+        if let Some(path) = &args.calibration {
+            config.calibration = CalibrationSource::File(path.clone());
+        }
+        config.mode = mode;
+        config.camera_px = (args.width, args.height);
+        config.seed = args.seed;
+        config.sim_projector_gamma = args.sim_projector_gamma;
+        config.precompensate_gamma = args.precompensate_gamma;
+        if let Some(periods) = &args.periods {
+            config.periods_px = periods.clone();
+        }
+        scan::scan_to_dir(&config, &args.out, &mut on_progress).with_context(failed)?
+    } else {
+        let (Some(port), Some(frames), Some(calibration)) =
+            (&args.port, &args.frames_from, &args.calibration)
+        else {
+            anyhow::bail!(
+                "no rig given: pass --sim for the simulated rig, or --port, --frames-from and \
+                 --calibration for hardware (missing: {})",
+                missing_hardware_args(&args).join(", ")
+            );
+        };
+        scan_hardware(&args, mode, port, frames, calibration, &mut on_progress)
+            .with_context(failed)?
+    };
+    print_summary(&report);
+    println!("wrote {}", args.out.join("scan.ply").display());
+    Ok(())
+}
+
+fn missing_hardware_args(args: &Args) -> Vec<&'static str> {
+    [
+        ("--port", args.port.is_none()),
+        ("--frames-from", args.frames_from.is_none()),
+        ("--calibration", args.calibration.is_none()),
+    ]
+    .into_iter()
+    .filter_map(|(name, missing)| missing.then_some(name))
+    .collect()
+}
+
+/// The hardware rig from the options and the calibration, then the scan.
+fn scan_hardware(
+    args: &Args,
+    mode: Mode,
+    port: &Path,
+    frames: &Path,
+    calibration_path: &Path,
+    progress: &mut dyn FnMut(Progress),
+) -> anyhow::Result<ScanReport> {
+    let calibration = read_rig(calibration_path)
+        .with_context(|| format!("reading the calibration {}", calibration_path.display()))?;
+    let config = hardware_config(args, mode, &calibration)?;
+    let cameras = FolderCamera::new(FolderCameraConfig {
+        root: frames.to_owned(),
+        heads: calibration
+            .heads
+            .iter()
+            .map(|h| FolderHead {
+                name: h.name.clone(),
+                image_size_px: (h.camera.width_px, h.camera.height_px),
+            })
+            .collect(),
+        bit_depth: args.bit_depth,
+        timeout: Duration::from_secs_f64(args.frame_timeout_s.max(0.0)),
+        poll_interval: Duration::from_millis(args.frame_poll_ms.max(1)),
+        settle: Duration::from_millis(args.frame_settle_ms),
     })?;
+    let patterns_dir = args
+        .patterns_dir
+        .clone()
+        .unwrap_or_else(|| args.out.join("dmd_patterns"));
+    let projector = FolderProjector::new(
+        patterns_dir,
+        calibration
+            .heads
+            .iter()
+            .map(|h| FolderProjectorHead {
+                name: h.name.clone(),
+                dmd_size_px: (h.projector.width_px, h.projector.height_px),
+            })
+            .collect(),
+        if args.patterns_preloaded {
+            PatternDelivery::Preloaded
+        } else {
+            PatternDelivery::Write
+        },
+    );
+    let board = SerialBoard::open(port, ClientConfig::default())
+        .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
+    let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
+    let source = format!("rig file {}", calibration_path.display());
+    let result = scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?;
+    Ok(scan::output::write_scan(&args.out, &result)?)
+}
+
+/// Sizes from the calibration (both heads' DMDs must match: one pattern
+/// set serves both), the rest from the options.
+fn hardware_config(
+    args: &Args,
+    mode: Mode,
+    calibration: &RigCalibration,
+) -> anyhow::Result<ScanConfig> {
+    let Some(a) = calibration.heads.first() else {
+        anyhow::bail!("the calibration has no head");
+    };
+    let dmd = (a.projector.width_px, a.projector.height_px);
+    if let Some(other) = calibration
+        .heads
+        .iter()
+        .find(|h| (h.projector.width_px, h.projector.height_px) != dmd)
+    {
+        anyhow::bail!(
+            "head {}'s DMD is {}x{} but head {}'s is {}x{}: one pattern set serves both heads",
+            other.name,
+            other.projector.width_px,
+            other.projector.height_px,
+            a.name,
+            dmd.0,
+            dmd.1
+        );
+    }
+    let mut config = ScanConfig::new("hardware");
+    config.mode = mode;
+    config.camera_px = (a.camera.width_px, a.camera.height_px);
+    config.projector_px = dmd;
+    config.periods_px = args
+        .periods
+        .clone()
+        .unwrap_or_else(|| default_periods_px(dmd.0));
+    config.noise_sigma = args.noise_sigma;
+    config.precompensate_gamma = args.precompensate_gamma;
+    Ok(config)
+}
+
+fn print_summary(report: &ScanReport) {
+    let f1 = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{v:.1}"));
+    let f3 = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{v:.3}"));
     for h in &report.heads {
         println!(
-            "head {}: {} points, RMSE {:.1} um (predicted {:.1} um; median {:.1} um, {} over 1 mm), coverage {:.3}",
-            h.name, h.points, h.rmse_um, h.predicted_rms_um, h.median_error_um, h.outliers_over_1mm, h.coverage
+            "head {}: {} points, RMSE {} um (predicted {} um; median {} um, {} over 1 mm), coverage {}",
+            h.name,
+            h.points,
+            f1(h.rmse_um),
+            f1(h.predicted_rms_um),
+            f1(h.median_error_um),
+            h.outliers_over_1mm
+                .map_or("n/a".to_string(), |n| n.to_string()),
+            f3(h.coverage)
         );
+        if let (Some(points), Some(pixels)) = (h.overlap_points, h.overlap_pixels) {
+            println!(
+                "head {} overlap (pixels lit by both projectors): {points} of {pixels} pixels reconstructed, RMSE {} um",
+                h.name,
+                f1(h.overlap_rmse_um)
+            );
+        }
     }
     let f = &report.fused;
     println!(
-        "fused: {} points, RMSE {:.1} um (point-to-plane), coverage {:.3}",
-        f.points, f.rmse_um, f.coverage
+        "fused: {} points, RMSE {} um (point-to-plane), coverage {}",
+        f.points,
+        f1(f.rmse_um),
+        f3(f.coverage)
     );
     match &f.icp {
         Some(icp) => println!(
@@ -123,12 +315,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => println!("no ICP: the heads share no usable surface; calibrated pose used"),
     }
     println!("calibration: {}", report.calibration);
+    print_calibration_vs_truth(report);
+    if report.surface_samples.is_none() {
+        println!("no ground truth: RMSE and coverage are not measured (null in report.json)");
+    }
+    for w in &report.warnings {
+        eprintln!("slscan: WARNING: {w}");
+    }
+}
+
+/// In simulation: an estimated calibration's error against the twin's
+/// truth, and the frame fits applied before measuring.
+fn print_calibration_vs_truth(report: &ScanReport) {
     if let Some(e) = &report.calibration_vs_truth {
         for h in &e.heads {
             println!(
                 "  head {} vs twin truth: camera dfx {:+.2} dcx {:+.2} dcy {:+.2} px, projector dfx {:+.2} dcy {:+.2} px, camera->projector {:.3} deg / {:.2} mm",
-                h.name, h.camera.dfx_px, h.camera.dcx_px, h.camera.dcy_px, h.projector.dfx_px,
-                h.projector.dcy_px, h.camera_to_projector.rotation_deg, h.camera_to_projector.translation_mm
+                h.name,
+                h.camera.dfx_px,
+                h.camera.dcx_px,
+                h.camera.dcy_px,
+                h.projector.dfx_px,
+                h.projector.dcy_px,
+                h.camera_to_projector.rotation_deg,
+                h.camera_to_projector.translation_mm
             );
         }
         if let Some(p) = &e.head_to_head {
@@ -138,19 +348,60 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
     }
-    let fit = &report.truth_frame_fit;
-    println!(
-        "frames fitted onto the truth before measuring: head A {:.3} deg / {:.0} um, head B {:.3} deg / {:.0} um, fused {:.3} deg / {:.0} um",
-        fit.heads[0].rotation_deg, fit.heads[0].translation_um, fit.heads[1].rotation_deg,
-        fit.heads[1].translation_um, fit.fused.rotation_deg, fit.fused.translation_um
-    );
-    println!(
-        "B->A pose used vs truth (frames fitted): {:.4} deg / {:.1} um",
-        f.pose_error_vs_truth_deg, f.pose_error_vs_truth_um
-    );
-    for w in &report.warnings {
-        eprintln!("slscan: WARNING: {w}");
+    if let Some(fit) = &report.truth_frame_fit {
+        let heads: Vec<String> = fit
+            .heads
+            .iter()
+            .map(|o| format!("{:.3} deg / {:.0} um", o.rotation_deg, o.translation_um))
+            .collect();
+        println!(
+            "frames fitted onto the truth before measuring: heads {}, fused {:.3} deg / {:.0} um",
+            heads.join(", "),
+            fit.fused.rotation_deg,
+            fit.fused.translation_um
+        );
     }
-    println!("wrote {}", args.out.join("scan.ply").display());
-    Ok(())
+    if let (Some(deg), Some(um)) = (
+        report.fused.pose_error_vs_truth_deg,
+        report.fused.pose_error_vs_truth_um,
+    ) {
+        println!("B->A pose used vs truth (frames fitted): {deg:.4} deg / {um:.1} um");
+    }
+}
+
+/// One progress bar per stage.
+struct Bars {
+    style: ProgressStyle,
+    bar: Option<ProgressBar>,
+}
+
+impl Bars {
+    fn new() -> Self {
+        let style = ProgressStyle::with_template("{prefix:>18} [{bar:30}] {pos}/{len} {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> ");
+        Bars { style, bar: None }
+    }
+
+    fn on(&mut self, p: Progress) {
+        match p {
+            Progress::Stage { name, total } => {
+                self.bar = Some(
+                    ProgressBar::new(total)
+                        .with_style(self.style.clone())
+                        .with_prefix(name),
+                );
+            }
+            Progress::Step => {
+                if let Some(b) = &self.bar {
+                    b.inc(1);
+                }
+            }
+            Progress::Done => {
+                if let Some(b) = self.bar.take() {
+                    b.finish();
+                }
+            }
+        }
+    }
 }

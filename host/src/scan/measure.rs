@@ -1,0 +1,162 @@
+//! The "measure" stage of a scan that has a ground truth (the digital twin):
+//! each head's reconstruction and the fused cloud against the true surface.
+//! On hardware there is none, and this stage does not run.
+
+use std::sync::Arc;
+
+use hil_sim::twin::{CameraGeometry, TwinRig};
+use nalgebra::{Isometry3, Vector3};
+
+use super::clouds::{points_f64, transformed};
+use super::metrics::{self, Sample};
+use super::truth_frame::fit_frame;
+use super::{twin_truth, FusedTruth, HeadTruth, ScanError};
+use crate::point_cloud::PointCloud;
+use crate::raster::Raster;
+use crate::reconstruct::Reconstruction;
+
+/// The digital twin a simulated scan is measured against.
+#[derive(Clone)]
+pub struct GroundTruth {
+    /// The twin the cameras rendered.
+    pub twin: Arc<TwinRig>,
+    /// Per scene object: whether it is "the object" (all but the wall).
+    pub is_object: Vec<bool>,
+}
+
+impl GroundTruth {
+    /// The truth of `twin`.
+    pub fn new(twin: Arc<TwinRig>) -> Self {
+        GroundTruth {
+            is_object: metrics::object_ids(twin.scene()),
+            twin,
+        }
+    }
+}
+
+/// Per-head and fused figures against the truth, and the coverage denominator.
+pub struct Measured {
+    /// Heads A and B.
+    pub heads: Vec<HeadTruth>,
+    /// The fused cloud.
+    pub fused: FusedTruth,
+    /// Samples of the measurable object surface.
+    pub surface_samples: usize,
+}
+
+/// Measures `recons` (each in its head's calibrated frame; each head alone,
+/// moved into head A's frame through its own frame fit) and `fused` (head
+/// A's calibrated frame), where `a_from_b_used` is the B->A pose fusion
+/// used. Every cloud is measured after a rigid fit of its calibrated frame
+/// onto the true one ([`super::truth_frame`]); fit problems go to `warnings`.
+pub fn measure(
+    truth: &GroundTruth,
+    recons: &[Reconstruction],
+    fused: &PointCloud,
+    a_from_b_used: &Isometry3<f64>,
+    warnings: &mut Vec<String>,
+) -> Result<Measured, ScanError> {
+    let twin = &truth.twin;
+    let geometries: Vec<_> = (0..recons.len())
+        .map(|h| twin.renderer(h))
+        .collect::<Result<_, _>>()?;
+    let any_pixel =
+        |g: &CameraGeometry| -> Vec<bool> { g.point_m.iter().map(|p| p[0].is_finite()).collect() };
+    let fused_pts = points_f64(fused);
+    let true_a_from_world = twin_truth::head_from_world(twin.rig(), 0);
+    let truth_in_true_a: Vec<Sample> = geometries
+        .iter()
+        .flat_map(|g| metrics::samples(g.geometry(), &any_pixel(g.geometry()), &true_a_from_world))
+        .collect();
+    let fused_fit = fit_frame(
+        &fused_pts,
+        &truth_in_true_a,
+        &true_a_from_world,
+        "fused cloud",
+        warnings,
+    );
+    let a_from_world = fused_fit.frame_from_world;
+    let mut surface: Vec<Sample> = Vec::new();
+    let mut all_surface: Vec<Sample> = Vec::new();
+    for (h, g) in geometries.iter().enumerate() {
+        let g = g.geometry();
+        let own = metrics::own_object_pixels(g, h, &truth.is_object);
+        surface.extend(metrics::samples(g, &own, &a_from_world));
+        all_surface.extend(metrics::samples(g, &any_pixel(g), &a_from_world));
+    }
+    let mut heads = Vec::new();
+    for (h, recon) in recons.iter().enumerate() {
+        let g = geometries[h].geometry();
+        let true_head_from_world = twin_truth::head_from_world(twin.rig(), h);
+        let frame_fit = fit_frame(
+            &points_f64(&recon.cloud),
+            &metrics::samples(g, &any_pixel(g), &true_head_from_world),
+            &true_head_from_world,
+            &format!("head {}", twin_truth::HEAD_NAMES[h]),
+            warnings,
+        );
+        let head_from_world = frame_fit.frame_from_world;
+        let accuracy = metrics::pixel_accuracy(recon, g, &head_from_world, h, &truth.is_object);
+        let overlap = metrics::masked_accuracy(recon, g, &head_from_world, &g.overlap);
+        let a_from_head = a_from_world * head_from_world.inverse();
+        let pts = points_f64(&transformed(&recon.cloud, &a_from_head));
+        heads.push(HeadTruth {
+            plane_rmse_m: metrics::point_to_plane_rmse(&pts, &all_surface)?,
+            coverage: metrics::coverage(&pts, &surface)?,
+            error_m: error_map(recon, g, &head_from_world),
+            accuracy,
+            overlap,
+            frame_fit,
+        });
+    }
+    let true_a_from_b = twin_truth::b_from_a(twin.rig()).inverse();
+    // The pose used maps B's calibrated frame into A's; in true frames:
+    let used_in_true_frames = heads[0].frame_fit.true_from_estimate
+        * a_from_b_used
+        * heads[1].frame_fit.true_from_estimate.inverse();
+    let diff = used_in_true_frames * true_a_from_b.inverse();
+    Ok(Measured {
+        heads,
+        fused: FusedTruth {
+            plane_rmse_m: metrics::point_to_plane_rmse(&fused_pts, &all_surface)?,
+            coverage: metrics::coverage(&fused_pts, &surface)?,
+            residual_pose_error: (
+                diff.rotation.angle().to_degrees(),
+                diff.translation.vector.norm(),
+            ),
+            frame_fit: fused_fit,
+        },
+        surface_samples: surface.len(),
+    })
+}
+
+/// |reconstructed - true| per pixel, metres (NaN where either is missing).
+fn error_map(
+    recon: &Reconstruction,
+    truth: &CameraGeometry,
+    head_from_world: &Isometry3<f64>,
+) -> Raster<f32> {
+    let data = recon
+        .pixels
+        .data
+        .iter()
+        .zip(&truth.point_m)
+        .map(|(px, t)| {
+            if !(px.point_m[0].is_finite() && t[0].is_finite()) {
+                return f32::NAN;
+            }
+            let tt = head_from_world * nalgebra::Point3::new(t[0] as f64, t[1] as f64, t[2] as f64);
+            let p = Vector3::new(
+                px.point_m[0] as f64,
+                px.point_m[1] as f64,
+                px.point_m[2] as f64,
+            );
+            (p - tt.coords).norm() as f32
+        })
+        .collect();
+    Raster {
+        width: recon.pixels.width,
+        height: recon.pixels.height,
+        data,
+    }
+}
