@@ -7,23 +7,12 @@
 //! folder with a temporary name and a rename). The scan then reads frames
 //! exactly as on a real rig. Small images keep each scan to seconds.
 
-use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
-use hil_sim::board::{spawn_on_pty, SimBoardConfig, SimBoardHandle};
-use hil_sim::devices::Displayed;
-use hil_sim::twin::scenes::{built_in, Detail};
-use hil_sim::twin::{Display, Exposure, Pattern, ProjectorTimeline, Shown, TwinRig};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use slscan::board::ClientConfig;
-use slscan::calibration::{write_rig, RigCalibration};
-use slscan::io::images::{load_gray, save_gray_png};
-use slscan::raster::Raster;
+use slscan::calibration::write_rig;
 use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{
     pattern_file_name, FolderProjector, FolderProjectorHead, PatternDelivery,
@@ -31,221 +20,12 @@ use slscan::rig::folder_projector::{
 use slscan::rig::hardware::HardwareRig;
 use slscan::rig::serial_board::SerialBoard;
 use slscan::rig::RigError;
-use slscan::scan::{
-    run_on_rig, sim_sensor, twin_truth, GroundTruth, Mode, ScanConfig, ScanError, ScanResult,
-};
+use slscan::scan::{run_on_rig, GroundTruth, Mode, ScanConfig, ScanError, ScanResult};
 
-const CAMERA_PX: (u32, u32) = (200, 150);
-const HEADS: [&str; 2] = ["A", "B"];
+#[path = "support/vendor_tools.rs"]
+mod vendor_tools;
 
-/// The twin every test renders (ray casts cached) and its calibration.
-fn twin() -> &'static (Arc<TwinRig>, RigCalibration) {
-    static TWIN: OnceLock<(Arc<TwinRig>, RigCalibration)> = OnceLock::new();
-    TWIN.get_or_init(|| {
-        let config = ScanConfig::new("large-part");
-        let detail = Detail {
-            camera: CAMERA_PX,
-            projector: config.projector_px,
-        };
-        let (scene, rig) = built_in("large-part", &detail).expect("scene");
-        let twin = Arc::new(TwinRig::new(scene, rig).expect("twin"));
-        let calibration = twin_truth::twin_calibration(twin.rig(), 2);
-        (twin, calibration)
-    })
-}
-
-/// What the camera software gets wrong.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Fault {
-    None,
-    /// Frame `index` of head `head` is never saved.
-    Drop {
-        head: usize,
-        index: usize,
-    },
-    /// Head `head` saves one frame too many after frame `index`.
-    Extra {
-        head: usize,
-        index: usize,
-    },
-    /// Frame `index` of head `head` is saved at half size.
-    WrongSize {
-        head: usize,
-        index: usize,
-    },
-    /// Frame `index` of head `head` is a truncated PNG.
-    Corrupt {
-        head: usize,
-        index: usize,
-    },
-}
-
-/// Per-test folders.
-struct Folders {
-    root: PathBuf,
-    frames: PathBuf,
-    patterns: PathBuf,
-    out: PathBuf,
-}
-
-fn folders(name: &str) -> Folders {
-    let root = std::env::temp_dir().join(format!("slscan-hw-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&root);
-    Folders {
-        frames: root.join("frames"),
-        patterns: root.join("patterns"),
-        out: root.join("out"),
-        root,
-    }
-}
-
-/// The DMD GUI and camera software: until `stop`, saves one frame per
-/// finished exposure of each simulated camera (see the module doc).
-fn play_vendor_tools(board: &SimBoardHandle, folders: &Folders, fault: Fault, stop: &AtomicBool) {
-    let (twin, _) = twin();
-    let sensor = sim_sensor();
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
-    // Board clock of the last exposure saved per camera: the clock runs on
-    // across plans, so later exposures are new ones.
-    let mut last_start_ns: [Option<u64>; 2] = [None, None];
-    let mut saved = [0usize; 2];
-    let mut dmd = DmdGui::default();
-    while !stop.load(Ordering::Relaxed) {
-        for cam in 0..2 {
-            let (exposures, displayed) = {
-                let b = board.board();
-                let heads = b.hardware().heads();
-                let exposures: Vec<(u64, u64)> = heads[cam]
-                    .camera
-                    .exposures()
-                    .iter()
-                    .filter_map(|e| e.end_ns.map(|end| (e.start_ns, end)))
-                    .filter(|&(start, _)| last_start_ns[cam].is_none_or(|last| start > last))
-                    .collect();
-                let displayed: Vec<Vec<Displayed>> = heads
-                    .iter()
-                    .map(|h| h.projector.displayed().to_vec())
-                    .collect();
-                (exposures, displayed)
-            };
-            for (start_ns, end_ns) in exposures {
-                let timelines: Vec<ProjectorTimeline> = displayed
-                    .iter()
-                    .enumerate()
-                    .map(|(p, shown)| {
-                        dmd.timeline(&folders.patterns.join(HEADS[p]), shown, start_ns, end_ns)
-                    })
-                    .collect();
-                let window = Exposure {
-                    start_s: start_ns as f64 * 1e-9,
-                    end_s: end_ns as f64 * 1e-9,
-                };
-                let (image, _) = twin
-                    .image(cam, &timelines, window, &sensor, &mut rng)
-                    .expect("twin renders");
-                let frame =
-                    Raster::from_vec(image.width as usize, image.height as usize, image.data)
-                        .expect("mono frame");
-                save_frame(
-                    &folders.frames.join(HEADS[cam]),
-                    cam,
-                    &mut saved[cam],
-                    &frame,
-                    fault,
-                );
-                last_start_ns[cam] = Some(start_ns);
-            }
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-}
-
-/// The DMD vendor's GUI: loads the pattern PNGs slscan handed over (each
-/// file decoded once per version of it).
-#[derive(Default)]
-struct DmdGui {
-    loaded: HashMap<PathBuf, (Stamp, Arc<Pattern>)>,
-}
-
-type Stamp = (u64, Option<std::time::SystemTime>);
-
-impl DmdGui {
-    fn pattern(&mut self, path: &Path) -> Arc<Pattern> {
-        let meta = std::fs::metadata(path).expect("the pattern file exists");
-        let stamp = (meta.len(), meta.modified().ok());
-        if let Some((s, p)) = self.loaded.get(path) {
-            if *s == stamp {
-                return p.clone();
-            }
-        }
-        let p = load_gray(path)
-            .expect("the DMD GUI loads the pattern")
-            .image;
-        let pattern = Arc::new(Pattern {
-            width: p.width as u32,
-            height: p.height as u32,
-            values: p.data,
-        });
-        self.loaded
-            .insert(path.to_owned(), (stamp, pattern.clone()));
-        pattern
-    }
-
-    /// What projector `dir`'s DMD showed during [start_ns, end_ns]: the
-    /// displayed log's patterns, from the PNG set in `dir`.
-    fn timeline(
-        &mut self,
-        dir: &Path,
-        displayed: &[Displayed],
-        start_ns: u64,
-        end_ns: u64,
-    ) -> ProjectorTimeline {
-        let shown = displayed
-            .iter()
-            .filter(|d| d.end_ns > start_ns && d.start_ns < end_ns)
-            .map(|d| Shown {
-                pattern: self.pattern(&dir.join(pattern_file_name(d.pattern_index as usize))),
-                start_s: d.start_ns as f64 * 1e-9,
-                end_s: d.end_ns as f64 * 1e-9,
-                led: [1.0; 3],
-                display: Display::Steady,
-            })
-            .collect();
-        ProjectorTimeline { shown }
-    }
-}
-
-/// Saves camera `cam`'s next frame as a 16-bit PNG (temporary + rename),
-/// or gets it wrong as `fault` says.
-fn save_frame(dir: &Path, cam: usize, saved: &mut usize, frame: &Raster<f32>, fault: Fault) {
-    let index = *saved;
-    *saved += 1;
-    let path = dir.join(format!("frame_{index:05}.png"));
-    match fault {
-        Fault::Drop { head, index: i } if head == cam && i == index => {}
-        Fault::WrongSize { head, index: i } if head == cam && i == index => {
-            let half = Raster::from_fn(frame.width / 2, frame.height / 2, |x, y| {
-                *frame.at(2 * x, 2 * y)
-            });
-            save_gray_png(&path, &half, true).expect("save");
-        }
-        Fault::Corrupt { head, index: i } if head == cam && i == index => {
-            let tmp = dir.join(".corrupt.tmp");
-            std::fs::write(&tmp, b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR truncated").expect("write");
-            std::fs::rename(&tmp, &path).expect("rename");
-        }
-        Fault::Extra { head, index: i } if head == cam && i == index => {
-            save_gray_png(&path, frame, true).expect("save");
-            save_gray_png(
-                &dir.join(format!("frame_{index:05}_again.png")),
-                frame,
-                true,
-            )
-            .expect("save");
-        }
-        _ => save_gray_png(&path, frame, true).expect("save"),
-    }
-}
+use vendor_tools::{twin, with_vendor_tools, Fault, Folders, CAMERA_PX, HEADS};
 
 /// A scan config for the twin's sizes.
 fn config(mode: Mode) -> ScanConfig {
@@ -293,28 +73,6 @@ fn hardware_rig(
     Ok(HardwareRig::new(board, projector, cameras, 2))
 }
 
-/// Runs `scan` against a fresh simulated board with the vendor tools
-/// playing along (getting `fault` wrong), then stops them.
-fn with_vendor_tools<T>(
-    name: &str,
-    fault: Fault,
-    scan: impl FnOnce(&Path, &Folders) -> T,
-) -> (T, Folders) {
-    let folders = folders(name);
-    std::fs::create_dir_all(&folders.root).expect("temp folder");
-    let board = spawn_on_pty(SimBoardConfig::default()).expect("pty board");
-    let port = board.path().expect("pty path").to_owned();
-    let stop = AtomicBool::new(false);
-    let out = std::thread::scope(|s| {
-        let vendor = s.spawn(|| play_vendor_tools(&board, &folders, fault, &stop));
-        let out = scan(&port, &folders);
-        stop.store(true, Ordering::Relaxed);
-        vendor.join().expect("vendor tools ran");
-        out
-    });
-    (out, folders)
-}
-
 /// A library-level hardware scan; measured against the twin when `truth`.
 fn hardware_scan(
     name: &str,
@@ -325,7 +83,8 @@ fn hardware_scan(
     // A missing frame is only known after the whole timeout; other faults
     // end the wait at once, so theirs only needs to outlast a slow machine.
     let timeout = match fault {
-        Fault::Drop { .. } => 5,
+        // Long enough for a slow, loaded CI machine to render the rest.
+        Fault::Drop { .. } => 10,
         _ => 30,
     };
     with_vendor_tools(name, fault, |port, folders| {
@@ -364,6 +123,23 @@ fn check_accurate(result: &ScanResult) {
         );
     }
     let fused = result.fused.truth.as_ref().expect("measured");
+    for head in &result.heads {
+        let t = head.truth.as_ref().expect("measured");
+        eprintln!(
+            "{:?} head {}: RMSE {:.1} um (predicted {:.1} um), coverage {:.3}",
+            result.config.mode,
+            head.name,
+            t.accuracy.rmse_m * 1e6,
+            t.accuracy.predicted_rms_m * 1e6,
+            t.coverage
+        );
+    }
+    eprintln!(
+        "{:?} fused: RMSE {:.1} um, coverage {:.3}",
+        result.config.mode,
+        fused.plane_rmse_m * 1e6,
+        fused.coverage
+    );
     let best = result
         .heads
         .iter()
@@ -415,6 +191,22 @@ fn simultaneous_mode_is_refused_without_a_twin() {
     let err = result.expect_err("no overlap mask on hardware");
     assert!(matches!(err, ScanError::NoAliasMask), "{err:?}");
     assert!(err.to_string().contains("PLACEHOLDER"));
+    let _ = std::fs::remove_dir_all(&folders.root);
+}
+
+#[test]
+fn a_board_vanishing_mid_scan_is_a_link_error() {
+    // Head A's run starts at tick 170_000 and lasts 12 x 34 ms; the board
+    // vanishes about 100 ms in.
+    let fault = Fault::BoardVanishes {
+        at_tick: 170_000 + 17_000_000,
+    };
+    let (result, folders) = hardware_scan("vanish", Mode::Sequential, fault, false);
+    let err = result.expect_err("the board vanished");
+    assert!(
+        matches!(err, ScanError::Rig(RigError::Board(ref e)) if e.is_link_failure()),
+        "{err:?}"
+    );
     let _ = std::fs::remove_dir_all(&folders.root);
 }
 
@@ -559,6 +351,10 @@ fn slscan_scan_on_a_port_writes_clouds_and_a_report_without_truth() {
         let h = &report["heads"][head];
         assert!(h["points"].as_u64().unwrap() > 5_000, "{h}");
         assert!(h["rmse_um"].is_null() && h["coverage"].is_null(), "{h}");
+        // The noise prediction needs no truth: 12-bit sensor noise through
+        // the S = 64 three-pitch set, about 130 um at the part.
+        let predicted = h["predicted_rms_um"].as_f64().unwrap();
+        assert!(predicted > 50.0 && predicted < 300.0, "{h}");
     }
     let fused = &report["fused"];
     assert!(
@@ -575,7 +371,7 @@ fn slscan_scan_on_a_port_writes_clouds_and_a_report_without_truth() {
 fn slscan_scan_with_a_missing_frame_fails_and_writes_no_scan() {
     let fault = Fault::Drop { head: 1, index: 0 };
     let (out, folders) = with_vendor_tools("cli-missing", fault, |port, folders| {
-        slscan_scan(port, folders, &["--frame-timeout-s", "5"])
+        slscan_scan(port, folders, &["--frame-timeout-s", "10"])
     });
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());

@@ -48,7 +48,7 @@ fn check_fused_scan(mode: Mode, name: &str) -> ScanReport {
         // demultiplexer, gives millimetres.
         assert!(truth(head.rmse_um) < 200.0, "head {}: {head:?}", head.name);
         assert!(
-            truth(head.rmse_um) <= truth(head.predicted_rms_um),
+            truth(head.rmse_um) <= head.predicted_rms_um,
             "head {}: {head:?}",
             head.name
         );

@@ -113,23 +113,22 @@ fn a_scan_on_an_estimated_calibration_stays_near_the_truth_calibrated_scan() {
         let rel = head.camera.intrinsics.fx / truth_head.camera.intrinsics.fx - 1.0;
         assert!(rel.abs() < 0.02, "head {} fx off by {rel}", head.name);
     }
-    // The ICP starts from the file's pose (millimetres off, unlike the
-    // truth's few micrometres) and must converge from it.
+    // The ICP starts from the file's pose (hundreds of micrometres off,
+    // unlike the truth's few) and must converge from it.
     let icp = estimated.fused.icp.as_ref().expect("ICP ran");
     assert!(icp.converged, "{icp:?}");
     assert!(
-        icp.translation_um > 100.0,
+        icp.translation_um > 50.0,
         "the file's pose was the seed: {icp:?}"
     );
-    // Measured here: fused RMSE 574 um on the estimate vs 97 um on the truth
-    // (5.9x), coverage 0.852 vs 0.893. The gap is the calibration's bias on
-    // the twin's aliased board renders (fx +1.3 %, c +-2 px at 320x240; at
-    // 640x480 the scan gives 352 vs 83 um): bound 8x until that bias is
-    // fixed, then tighten towards 1.5x. A wrong head pose, swapped heads or
-    // a calibration of other devices give millimetres or a failed ICP.
+    // Measured here (board renders integrating 4x4 rays per pixel): fused
+    // RMSE 114.8 um on the estimate vs 97.4 um on the truth (1.18x),
+    // coverage 0.894 vs 0.893; B->A used 0.06 deg / 0.48 mm off. With the
+    // aliased one-ray renders (fx -1.3 %, cy off 2 px) it was 574 um (5.9x):
+    // this bound fails on such a calibration.
     let (est_rmse, truth_rmse) = (figure(estimated.fused.rmse_um), figure(truth.fused.rmse_um));
     assert!(
-        est_rmse <= 8.0 * truth_rmse,
+        est_rmse <= 1.5 * truth_rmse,
         "estimated {est_rmse} um vs truth {truth_rmse} um"
     );
     let est_coverage = figure(estimated.fused.coverage);

@@ -473,3 +473,70 @@ fn projector_gamma_harmonics_hurt_3_step_but_not_4_step() {
     assert!(gam3 > 0.1, "{gam3}");
     assert!(gam4 < 0.02, "{gam4}");
 }
+
+#[test]
+fn pixel_samples_give_an_edge_pixel_the_grey_level_of_its_area_share() {
+    // A fronto-parallel plane 0.5 m away, light (0.8) left of x = 1.3 mm, dark (0.2)
+    // right of it, lit by ambient only: the edge crosses each row at a known column.
+    let (w, h) = (64u32, 48u32);
+    let edge_x_m = 0.0013;
+    let scene = Scene {
+        objects: vec![Object::new(
+            "edge",
+            Shape::Rect {
+                half_x_m: 1.0,
+                half_y_m: 1.0,
+            },
+            Material::matte(Albedo::Stripes {
+                period_m: 1.0,
+                colours: vec![[0.2; 3], [0.8; 3]],
+            }),
+            Pose::translation(edge_x_m, 0.0, 0.5),
+        )],
+        ambient_surface: [1.0; 3],
+        ambient_direct: [0.0; 3],
+    };
+    let rig = Rig {
+        cameras: vec![camera(w, h, Distortion::default())],
+        projectors: vec![projector(0.1, 200, 150)],
+        medium: Medium::Air,
+    };
+    let k = &rig.cameras[0].model.intrinsics;
+    let edge_px = k.cx + k.fx * edge_x_m / 0.5;
+    let exp = Exposure {
+        start_s: 0.0,
+        end_s: 1.0,
+    };
+    // Edge column estimated from the grey level of the one pixel it crosses.
+    let edge_from = |samples: u32| -> (f64, usize) {
+        let r = Renderer::with_pixel_samples(&scene, &rig, 0, 0.0, samples).unwrap();
+        assert_eq!(r.pixel_samples(), samples);
+        let e = r.exposed(&[ProjectorTimeline::dark()], exp).unwrap();
+        let y = h as usize / 2;
+        let row: Vec<f64> = (0..w as usize)
+            .map(|x| f64::from(e.ambient[y * w as usize + x][0]))
+            .collect();
+        let mixed = row.iter().filter(|v| (0.21..0.79).contains(*v)).count();
+        let x = edge_px.round() as usize;
+        // Light share of pixel x = 0.8 f + 0.2 (1 - f); the edge sits f into it.
+        let f = (row[x] - 0.2) / 0.6;
+        (x as f64 - 0.5 + f, mixed)
+    };
+    let (one, mixed_one) = edge_from(1);
+    let (eight, mixed_eight) = edge_from(8);
+    eprintln!("edge at {edge_px:.4} px: 1 sample {one:.4} px, 8x8 samples {eight:.4} px");
+    // One ray per pixel: no grey pixels, the edge snaps to a pixel boundary.
+    assert_eq!(mixed_one, 0);
+    assert!((one - edge_px).abs() > 0.1, "{one} vs {edge_px}");
+    // 8 x 8 samples: the area share, to the sample grid's 1/16 px.
+    assert_eq!(mixed_eight, 1);
+    assert!(
+        (eight - edge_px).abs() <= 1.0 / 16.0 + 1e-6,
+        "{eight} vs {edge_px}"
+    );
+    // Nonsense sample counts are refused.
+    assert!(matches!(
+        Renderer::with_pixel_samples(&scene, &rig, 0, 0.0, 0),
+        Err(TwinError::BadParameter { .. })
+    ));
+}

@@ -109,6 +109,9 @@ impl ProjectorView {
     }
 }
 
+/// Most rays per pixel and axis [`CameraGeometry::sampled`] accepts (256 per pixel).
+pub const MAX_PIXEL_SAMPLES: u32 = 16;
+
 const NAN2: [f32; 2] = [f32::NAN; 2];
 const NAN3: [f32; 3] = [f32::NAN; 3];
 
@@ -117,22 +120,52 @@ fn f3(v: &V3) -> [f32; 3] {
 }
 
 impl CameraGeometry {
-    /// Casts every pixel's ray into the posed scene and tests each projector.
+    /// Casts every pixel's ray (through its centre) into the posed scene and tests
+    /// each projector.
     pub fn new(scene: &PosedScene, rig: &Rig, camera: usize) -> Result<CameraGeometry, TwinError> {
+        Self::sampled(scene, rig, camera, 1)
+    }
+
+    /// Casts `samples` x `samples` rays per camera pixel, on a regular grid over the
+    /// pixel's area, into a geometry `samples` times as wide and high: sample (X, Y)
+    /// looks through camera pixel `((X + 0.5) / samples - 0.5, (Y + 0.5) / samples -
+    /// 0.5)` (pixel centres at integers). Averaging the light of a pixel's samples is
+    /// what a real pixel does: it integrates over its area, so a sharp edge gives a
+    /// grey pixel whose level says where the edge crosses it. `samples` = 1 is
+    /// [`Self::new`].
+    pub fn sampled(
+        scene: &PosedScene,
+        rig: &Rig,
+        camera: usize,
+        samples: u32,
+    ) -> Result<CameraGeometry, TwinError> {
         rig.validate()?;
         scene.scene().validate()?;
         let cam = rig.cameras.get(camera).ok_or(TwinError::NoSuchCamera {
             index: camera,
             count: rig.cameras.len(),
         })?;
-        let (w, h) = (cam.model.intrinsics.width, cam.model.intrinsics.height);
+        if !(1..=MAX_PIXEL_SAMPLES).contains(&samples) {
+            return Err(TwinError::BadParameter {
+                name: "pixel samples per axis",
+                value: f64::from(samples),
+                why: "must be 1..=16",
+            });
+        }
+        let (w, h) = (
+            cam.model.intrinsics.width * samples,
+            cam.model.intrinsics.height * samples,
+        );
+        let k = f64::from(samples);
         let np = rig.projectors.len();
         let rows: Vec<RowGeom> = (0..h)
             .into_par_iter()
             .map(|y| {
                 let mut row = RowGeom::with_capacity(w as usize, np);
+                let yc = (f64::from(y) + 0.5) / k - 0.5;
                 for x in 0..w {
-                    pixel(scene, rig, camera, x as f64, y as f64, &mut row);
+                    let xc = (f64::from(x) + 0.5) / k - 0.5;
+                    pixel(scene, rig, camera, xc, yc, &mut row);
                 }
                 row
             })

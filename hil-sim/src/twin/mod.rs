@@ -73,7 +73,7 @@ pub use medium::{Medium, Turbidity, Water};
 pub use mesh::Mesh;
 pub use mesh_io::load_mesh;
 pub use pattern::{BitDepth, Display, Exposure, Fringe, Pattern, ProjectorTimeline, Shown};
-pub use render::{render_exposure, Exposed, Frame, Renderer};
+pub use render::{render_exposure, Exposed, Frame, Renderer, CALIBRATION_PIXEL_SAMPLES};
 pub use scene::{Albedo, Checkerboard, Material, Motion, Object, Scene, Texture};
 pub use sensor::{Channels, Image, SensorModel};
 pub use truth::Truth;

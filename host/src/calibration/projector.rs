@@ -10,7 +10,7 @@
 //! around it (Moreno & Taubin 2012): it averages phase noise and follows the
 //! board's perspective, where reading the phase at one pixel would not.
 
-use nalgebra::Point2;
+use nalgebra::{Matrix3, Point2};
 
 use super::board::GrayImage;
 use super::bundle::{
@@ -121,14 +121,60 @@ pub fn projector_points(
                     }
                 }
             }
-            if 2 * cam.len() < window {
-                return None;
-            }
-            let h = fit_homography(&cam, &proj).ok()?;
+            let h = robust_homography(&cam, &proj, window.div_ceil(2))?;
             let p = apply_homography(&h, Point2::origin());
             (p.x.is_finite() && p.y.is_finite()).then_some(p)
         })
         .collect())
+}
+
+/// Inlier threshold, in robust standard deviations of the residuals.
+const OUTLIER_SIGMAS: f64 = 3.5;
+/// Smallest inlier threshold, projector pixels: noise-free maps have residuals of
+/// rounding size, which must not turn into rejections.
+const MIN_THRESHOLD_PX: f64 = 1e-3;
+/// Most rounds of fit -> reject -> refit.
+const MAX_ROUNDS: usize = 8;
+
+/// Local homography `cam -> proj` that ignores samples off the fit: after each
+/// least-squares fit, samples whose residual exceeds `OUTLIER_SIGMAS` robust standard
+/// deviations (from the median residual) are set aside and the rest refitted, until the
+/// inlier set no longer changes. A fringe-order error that slipped past the unwrapper
+/// puts a sample a whole period off, and one such sample bends a plain least-squares
+/// fit by a good fraction of a pixel. `None` with fewer than `min_inliers` inliers.
+fn robust_homography(
+    cam: &[Point2<f64>],
+    proj: &[Point2<f64>],
+    min_inliers: usize,
+) -> Option<Matrix3<f64>> {
+    let mut inliers: Vec<usize> = (0..cam.len()).collect();
+    for round in 0..MAX_ROUNDS {
+        if inliers.len() < min_inliers.max(4) {
+            return None;
+        }
+        let from: Vec<Point2<f64>> = inliers.iter().map(|&i| cam[i]).collect();
+        let to: Vec<Point2<f64>> = inliers.iter().map(|&i| proj[i]).collect();
+        let h = fit_homography(&from, &to).ok()?;
+        // Residuals of every sample, so that one set aside too early can come back.
+        let residual: Vec<f64> = cam
+            .iter()
+            .zip(proj)
+            .map(|(c, p)| (apply_homography(&h, *c) - p).norm())
+            .collect();
+        let mut of_inliers: Vec<f64> = inliers.iter().map(|&i| residual[i]).collect();
+        of_inliers.sort_by(f64::total_cmp);
+        // The norm of a 2-D Gaussian residual has median sqrt(2 ln 2) sigma = 1.1774 sigma.
+        let sigma = of_inliers[of_inliers.len() / 2] / 1.1774;
+        let threshold = (OUTLIER_SIGMAS * sigma).max(MIN_THRESHOLD_PX);
+        let next: Vec<usize> = (0..cam.len())
+            .filter(|&i| residual[i] <= threshold)
+            .collect();
+        if next == inliers || round + 1 == MAX_ROUNDS {
+            return Some(h);
+        }
+        inliers = next;
+    }
+    None
 }
 
 /// Calibrates the projector from the camera's corners and the phase maps of
@@ -176,6 +222,12 @@ pub fn calibrate_projector(
     Ok((cal, views))
 }
 
+/// Least-squares local homography without outlier rejection (the tests' reference).
+#[cfg(test)]
+fn plain_homography(cam: &[Point2<f64>], proj: &[Point2<f64>]) -> Option<Matrix3<f64>> {
+    fit_homography(cam, proj).ok()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -201,6 +253,55 @@ mod tests {
         let got = projector_points(&[c], &maps, 5).unwrap()[0].unwrap();
         let want = Point2::new(2.0 * c.x + 0.3 * c.y + 5.0, -0.2 * c.x + 1.8 * c.y + 7.0);
         assert!((got - want).norm() < 1e-3, "{got} vs {want}");
+    }
+
+    #[test]
+    fn order_errors_in_the_window_do_not_move_the_projector_pixel() {
+        // As above, with four samples one fringe period (20 px) off in x or y, as an
+        // unwrapping order error leaves them.
+        let tau = std::f64::consts::TAU;
+        let truth_x = |x: f64, y: f64| 2.0 * x + 0.3 * y + 5.0;
+        let truth_y = |x: f64, y: f64| -0.2 * x + 1.8 * y + 7.0;
+        let spikes = [
+            (28, 24, 20.0, 0.0),
+            (33, 27, 20.0, 0.0),
+            (31, 22, 0.0, 20.0),
+        ];
+        let spiked = |x: f64, y: f64, axis: usize| {
+            spikes
+                .iter()
+                .find(|s| (f64::from(s.0), f64::from(s.1)) == (x, y))
+                .map_or(0.0, |s| if axis == 0 { s.2 } else { s.3 })
+        };
+        let px = ramp(64, 64, |x, y| {
+            tau * (truth_x(x, y) + spiked(x, y, 0)) / 20.0
+        });
+        let py = ramp(64, 64, |x, y| {
+            tau * (truth_y(x, y) + spiked(x, y, 1)) / 20.0
+        });
+        let maps = PhaseMaps {
+            phase_x: &px,
+            phase_y: &py,
+            period_px: 20.0,
+        };
+        let c = Point2::new(30.4, 25.7);
+        let want = Point2::new(truth_x(c.x, c.y), truth_y(c.x, c.y));
+        let got = projector_points(&[c], &maps, 5).unwrap()[0].unwrap();
+        assert!((got - want).norm() < 1e-3, "{got} vs {want}");
+        // The same window fitted without rejection is bent by the spikes.
+        let (mut cam, mut proj) = (Vec::new(), Vec::new());
+        for y in 21..=31 {
+            for x in 25..=35 {
+                let (xf, yf) = (f64::from(x), f64::from(y));
+                cam.push(Point2::new(xf - c.x, yf - c.y));
+                proj.push(Point2::new(
+                    truth_x(xf, yf) + spiked(xf, yf, 0),
+                    truth_y(xf, yf) + spiked(xf, yf, 1),
+                ));
+            }
+        }
+        let plain = apply_homography(&plain_homography(&cam, &proj).unwrap(), Point2::origin());
+        assert!((plain - want).norm() > 0.05, "{plain} vs {want}");
     }
 
     #[test]

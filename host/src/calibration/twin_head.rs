@@ -3,7 +3,9 @@
 //! The twin's single-head rig (`scenes::single_head`) looks at the twin's 9x7-square
 //! checkerboard (`scenes::CHECKERBOARD`, 8x6 inner corners of 20 mm) held at `views`
 //! poses in front of a dim wall. Each view is a ray-cast render lit by the projector's
-//! white field, and, for the projector, x and y fringes (4 steps at three periods each)
+//! white field, whose pixels integrate 4x4 rays over their area (one ray per pixel
+//! would alias the square edges and bias the corners by about 0.16 px), and, for the
+//! projector, x and y fringes (4 steps at three periods each, one ray per pixel)
 //! decoded and heterodyne-unwrapped by slscan's own phase and unwrap code into the
 //! absolute phase maps `calibrate_head` expects. The truth is the twin's device set,
 //! converted by [`super::from_twin`].
@@ -14,7 +16,7 @@ use std::sync::Arc;
 use hil_sim::twin::scenes::{single_head, Detail, CHECKERBOARD};
 use hil_sim::twin::{
     look_at, Albedo, BitDepth, Exposure, Fringe, Material, Object, Pattern, ProjectorTimeline,
-    Renderer, Rig, Scene, SensorModel, Shape, TwinError, V3,
+    Renderer, Rig, Scene, SensorModel, Shape, TwinError, CALIBRATION_PIXEL_SAMPLES, V3,
 };
 use nalgebra::Vector3;
 
@@ -43,6 +45,9 @@ pub struct TwinHead {
     /// Per view: the board object's pose in the twin world (`world_from_board`, board
     /// centred on its local origin as the twin draws it).
     pub world_from_board: Vec<hil_sim::twin::Pose>,
+    /// Rays per camera pixel and axis the views are rendered with (each pixel
+    /// integrates over its area; default [`CALIBRATION_PIXEL_SAMPLES`]).
+    pub pixel_samples: u32,
 }
 
 /// The twin's checkerboard in slscan's terms (inner corners, origin at corner (0, 0)).
@@ -101,12 +106,13 @@ impl TwinHead {
             rig,
             truth,
             world_from_board,
+            pixel_samples: CALIBRATION_PIXEL_SAMPLES,
         }
     }
 
     /// A second head 15 cm to the left (its own camera intrinsics and lens, its projector
-    /// 12 cm to the camera's right as in head 0),
-    /// aimed at the same boards; returns it and the true head-0 camera -> head-1
+    /// 12 cm to the camera's right as in head 0), aimed at the same boards and rendered
+    /// with the same pixel samples; returns it and the true head-0 camera -> head-1
     /// camera pose.
     pub fn second_head(&self) -> (TwinHead, Pose) {
         let mut rig = self.rig.clone();
@@ -131,7 +137,11 @@ impl TwinHead {
         let a_world_to_cam = pose_from_twin(&self.rig.cameras[0].model.world_from_device);
         let b_world_to_cam = pose_from_twin(&rig.cameras[0].model.world_from_device);
         let a_to_b = b_world_to_cam.compose(&a_world_to_cam.inverse());
-        (Self::with_rig(rig, self.world_from_board.clone()), a_to_b)
+        let second = Self {
+            pixel_samples: self.pixel_samples,
+            ..Self::with_rig(rig, self.world_from_board.clone())
+        };
+        (second, a_to_b)
     }
 
     /// The projector spec the calibration is told.
@@ -218,10 +228,16 @@ impl TwinHead {
         };
         let mut captures = Vec::with_capacity(self.world_from_board.len());
         for v in 0..self.world_from_board.len() {
-            let renderer = Renderer::new(&self.scene(v), &self.rig, 0, 0.0)?;
+            let scene = self.scene(v);
+            let board_renderer =
+                Renderer::with_pixel_samples(&scene, &self.rig, 0, 0.0, self.pixel_samples)?;
             let view_seed = seed.wrapping_mul(7919).wrapping_add(1000 * v as u64);
-            let image = expose(&renderer, &white, sensor, view_seed)?;
+            let image = expose(&board_renderer, &white, sensor, view_seed)?;
             let phase = if with_phase {
+                // One ray per pixel for the fringes: on the flat board the phase is
+                // smooth and the albedo edges cancel in it, so area sampling (16x the
+                // cost for 24 frames) changes nothing the phase maps are used for.
+                let renderer = Renderer::new(&scene, &self.rig, 0, 0.0)?;
                 let mut maps = Vec::with_capacity(2);
                 for (d, (patterns, range_px)) in fringes.iter().zip([w, h]).enumerate() {
                     let mut frames = Vec::with_capacity(patterns.len());
@@ -310,58 +326,13 @@ fn absolute_phase(frames: &[GrayImage], range_px: f64) -> GrayImage {
         .expect("periods span the DMD");
     let refs: Vec<&Raster<f32>> = wrapped.iter().map(|p| &p.phase).collect();
     let abs = unwrapper.unwrap(&refs, Some(&mask)).expect("equal sizes");
-    let clean = drop_order_spikes(&abs.phase.data, w as usize, h as usize);
-    GrayImage::from_raw(w, h, clean).expect("width x height samples")
-}
-
-/// NaN where a pixel's absolute phase is more than pi from the median of its valid
-/// 3x3 neighbours: a fringe-order error that slipped past the heterodyne check (dark
-/// squares have little modulation) would otherwise bend a corner's local homography.
-fn drop_order_spikes(phase: &[f32], w: usize, h: usize) -> Vec<f32> {
-    let mut out = phase.to_vec();
-    let mut near = Vec::with_capacity(9);
-    for y in 0..h {
-        for x in 0..w {
-            let p = phase[y * w + x];
-            if !p.is_finite() {
-                continue;
-            }
-            near.clear();
-            for ny in y.saturating_sub(1)..(y + 2).min(h) {
-                for nx in x.saturating_sub(1)..(x + 2).min(w) {
-                    let q = phase[ny * w + nx];
-                    if (nx, ny) != (x, y) && q.is_finite() {
-                        near.push(q);
-                    }
-                }
-            }
-            if near.len() < 3 {
-                out[y * w + x] = f32::NAN;
-                continue;
-            }
-            near.sort_by(f32::total_cmp);
-            if (p - near[near.len() / 2]).abs() > std::f32::consts::PI {
-                out[y * w + x] = f32::NAN;
-            }
-        }
-    }
-    out
+    GrayImage::from_raw(w, h, abs.phase.data).expect("width x height samples")
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::calibration::PinholeModel;
-
-    #[test]
-    fn an_order_error_is_dropped_and_its_neighbours_kept() {
-        let (w, h) = (5, 5);
-        let mut phase: Vec<f32> = (0..w * h).map(|i| 0.3 * (i % w) as f32).collect();
-        phase[12] += std::f32::consts::TAU;
-        let clean = drop_order_spikes(&phase, w, h);
-        assert!(clean[12].is_nan());
-        assert_eq!(clean.iter().filter(|v| v.is_nan()).count(), 1);
-    }
 
     #[test]
     fn board_pose_maps_corner_zero_to_the_twins_first_inner_corner() {

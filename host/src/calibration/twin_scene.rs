@@ -137,6 +137,7 @@ pub fn scene_heads(
                 truth: head_from_twin(&sub, 0, 0, names[h]).expect("one camera, one projector"),
                 rig: sub,
                 world_from_board,
+                pixel_samples: standard.pixel_samples,
             }
         })
         .collect();

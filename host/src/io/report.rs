@@ -18,8 +18,9 @@ pub struct HeadReport {
     /// Median of that distance, micrometres.
     pub median_error_um: Option<f64>,
     /// RMS of the predicted per-point sigma (phase-noise Cramer-Rao bound
-    /// in metres along the ray), micrometres: the limit `rmse_um` meets.
-    pub predicted_rms_um: Option<f64>,
+    /// in metres along the ray), micrometres: the limit `rmse_um` meets
+    /// (needs no truth, so present on hardware too).
+    pub predicted_rms_um: f64,
     /// Valid pixels off by more than 1 mm (counted in the RMSE).
     pub outliers_over_1mm: Option<usize>,
     /// Point-to-plane RMSE against the true surface, micrometres.
@@ -166,7 +167,7 @@ mod tests {
             points: 0,
             rmse_um: Some(f64::NAN),
             median_error_um: None,
-            predicted_rms_um: Some(f64::NAN),
+            predicted_rms_um: f64::NAN,
             outliers_over_1mm: Some(0),
             plane_rmse_um: Some(1.0),
             coverage: None,

@@ -20,7 +20,9 @@
 //! - **A frame is complete** when its size is non-zero and its size and
 //!   modification time did not change between two looks one poll interval
 //!   apart (so a file still being written is not read half-way); a tool that
-//!   writes to a temporary name and renames is complete at once.
+//!   writes to a temporary name and renames is complete at once. The whole
+//!   set must then stay unchanged for the settle time (below), so a writer
+//!   that pauses mid-file for less than that is waited for too.
 //! - **Count**: after the plan ran, [`FrameSource::take_frames`] waits up to
 //!   the timeout for exactly as many new complete frames as the head's camera
 //!   was triggered, then for the folder to stay so for the settle time (a
@@ -144,14 +146,19 @@ impl FolderCamera {
                 .count();
             if complete == expected && now.len() == expected {
                 let since = *reached_at.get_or_insert_with(Instant::now);
-                // Settled: a late extra frame would have shown up by now.
+                // Settled: a late extra frame, or a writer that paused
+                // mid-file, would have shown up by now.
                 if since.elapsed() >= self.config.settle {
                     let mut names: Vec<OsString> = now.into_keys().collect();
                     names.sort_by(|a, b| natural_cmp(&a.to_string_lossy(), &b.to_string_lossy()));
                     return Ok(names);
                 }
-            } else if Instant::now() >= deadline {
-                return Err(count_error(now.len()));
+            } else {
+                // Something changed: the settle time starts again.
+                reached_at = None;
+                if Instant::now() >= deadline {
+                    return Err(count_error(now.len()));
+                }
             }
             last = now;
             std::thread::sleep(self.config.poll_interval);
@@ -463,6 +470,38 @@ mod tests {
             ),
             "{err}"
         );
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn a_file_written_in_bursts_is_read_whole() {
+        let root = temp_root("bursts");
+        let mut cam = camera(&root, None);
+        cam.config.settle = Duration::from_millis(250);
+        cam.config.timeout = Duration::from_secs(5);
+        let dir = root.join("A");
+        let whole_path = root.join("whole.png");
+        save_gray_png(&whole_path, &frame(0.5), false).unwrap();
+        let whole = std::fs::read(&whole_path).unwrap();
+        cam.arm(&[1]).unwrap();
+        let third = whole.len() / 3;
+        std::fs::write(dir.join("f0.png"), &whole[..third]).unwrap();
+        // The writer pauses twice for many poll intervals; together the
+        // pauses outlast the settle time, each alone does not.
+        let rest = whole[third..].to_vec();
+        let path = dir.join("f0.png");
+        let writer = std::thread::spawn(move || {
+            use std::io::Write;
+            let mut f = std::fs::OpenOptions::new().append(true).open(path).unwrap();
+            for chunk in rest.chunks(rest.len().div_ceil(2)) {
+                std::thread::sleep(Duration::from_millis(150));
+                f.write_all(chunk).unwrap();
+                f.flush().unwrap();
+            }
+        });
+        let frames = cam.take_frames(0).unwrap();
+        writer.join().unwrap();
+        assert_eq!(frames[0].data[0], 128.0 / 255.0);
         std::fs::remove_dir_all(&root).unwrap();
     }
 

@@ -1,6 +1,7 @@
 //! The simulated rig: hil-sim's board served on a real pseudo-terminal, the
-//! host's serial [`BoardClient`] talking to it, and cameras rendered by the
-//! digital twin ([`TwinRig`]).
+//! host's serial [`crate::board::BoardClient`] talking to it (through
+//! [`super::serial_board::SerialBoard`], as on hardware), and cameras
+//! rendered by the digital twin ([`TwinRig`]).
 //!
 //! A camera frame is rendered from the board's executed timeline, not from
 //! the plan: each simulated DMD logs when each pattern was really on its

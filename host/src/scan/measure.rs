@@ -14,6 +14,7 @@ use super::{twin_truth, FusedTruth, HeadTruth, ScanError};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::Reconstruction;
+use crate::unwrap::PixelStatus;
 
 /// The digital twin a simulated scan is measured against.
 #[derive(Clone)]
@@ -128,6 +129,24 @@ pub fn measure(
         },
         surface_samples: surface.len(),
     })
+}
+
+/// RMS of the reconstruction's predicted per-point sigma (phase-noise
+/// Cramer-Rao bound carried to metres along the ray) over valid pixels,
+/// metres (NaN without any): the one accuracy figure that needs no truth.
+pub fn predicted_rms_m(recon: &Reconstruction) -> f64 {
+    let (n, sum) = recon
+        .pixels
+        .data
+        .iter()
+        .filter(|px| px.status == PixelStatus::Valid && px.sigma_m.is_finite())
+        .fold((0usize, 0.0f64), |(n, s), px| {
+            (n + 1, s + f64::from(px.sigma_m).powi(2))
+        });
+    if n == 0 {
+        return f64::NAN;
+    }
+    (sum / n as f64).sqrt()
 }
 
 /// |reconstructed - true| per pixel, metres (NaN where either is missing).

@@ -259,6 +259,8 @@ pub struct HeadResult {
     /// The cloud moved into head A's frame (the fused frame) by the B->A
     /// pose fusion used, so it lines up with the fused cloud.
     pub cloud_in_a: PointCloud,
+    /// RMS of the predicted per-point sigma, metres (needs no truth).
+    pub predicted_rms_m: f64,
     /// Figures against the ground truth (`None` on hardware).
     pub truth: Option<HeadTruth>,
 }
@@ -541,6 +543,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
                 name: twin_truth::HEAD_NAMES[h],
                 first_frame: captured.raw[h][0].clone(),
                 cloud_in_a: transformed(&recon.cloud, &a_from_head),
+                predicted_rms_m: measure::predicted_rms_m(&recon),
                 reconstruction: recon,
                 truth: head_truths[h].take(),
             }

@@ -131,7 +131,7 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                     points: t.map_or(h.reconstruction.cloud.len(), |t| t.accuracy.points),
                     rmse_um: t.map(|t| t.accuracy.rmse_m * um),
                     median_error_um: t.map(|t| t.accuracy.median_m * um),
-                    predicted_rms_um: t.map(|t| t.accuracy.predicted_rms_m * um),
+                    predicted_rms_um: h.predicted_rms_m * um,
                     outliers_over_1mm: t.map(|t| t.accuracy.outliers),
                     plane_rmse_um: t.map(|t| t.plane_rmse_m * um),
                     coverage: t.map(|t| t.coverage),

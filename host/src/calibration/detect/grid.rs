@@ -98,12 +98,8 @@ pub fn grow(points: &[Point2<f64>], seed: usize) -> Option<Grown> {
             queue.push_back(next);
         }
     }
-    let (imin, imax) = cells
-        .keys()
-        .fold((i64::MAX, i64::MIN), |(a, b), c| (a.min(c.0), b.max(c.0)));
-    let (jmin, jmax) = cells
-        .keys()
-        .fold((i64::MAX, i64::MIN), |(a, b), c| (a.min(c.1), b.max(c.1)));
+    trim_sparse_border(&mut cells);
+    let (imin, imax, jmin, jmax) = extent(&cells);
     let width = (imax - imin + 1) as usize;
     let height = (jmax - jmin + 1) as usize;
     if cells.len() != width * height {
@@ -125,6 +121,45 @@ pub fn grow(points: &[Point2<f64>], seed: usize) -> Option<Grown> {
         width,
         height,
     })
+}
+
+/// Smallest and largest cell index along each axis: `(imin, imax, jmin, jmax)`.
+fn extent(cells: &Cells) -> (i64, i64, i64, i64) {
+    cells.keys().fold(
+        (i64::MAX, i64::MIN, i64::MAX, i64::MIN),
+        |(a, b, c, d), k| (a.min(k.0), b.max(k.0), c.min(k.1), d.max(k.1)),
+    )
+}
+
+/// Drops incomplete outer rows and columns, the emptiest first, until the cells fill
+/// their bounding rectangle: a lone saddle just outside the board (where a board cut
+/// by the image edge meets the border, or clutter in line with the grid) would
+/// otherwise stretch the grid by a row and hide the full board inside it.
+fn trim_sparse_border(cells: &mut Cells) {
+    while !cells.is_empty() {
+        let (imin, imax, jmin, jmax) = extent(cells);
+        let (width, height) = (imax - imin + 1, jmax - jmin + 1);
+        if cells.len() as i64 == width * height {
+            return;
+        }
+        let count = |on: &dyn Fn(&(i64, i64)) -> bool| cells.keys().filter(|k| on(k)).count();
+        // (cells on the line, full length of the line, which line)
+        let lines = [
+            (count(&|k| k.0 == imin), height, (0, imin)),
+            (count(&|k| k.0 == imax), height, (0, imax)),
+            (count(&|k| k.1 == jmin), width, (1, jmin)),
+            (count(&|k| k.1 == jmax), width, (1, jmax)),
+        ];
+        let Some(&(_, _, (axis, at))) = lines
+            .iter()
+            .filter(|(n, full, _)| (*n as i64) < *full)
+            .min_by(|a, b| (a.0 as f64 / a.1 as f64).total_cmp(&(b.0 as f64 / b.1 as f64)))
+        else {
+            // Holes inside, borders complete: nothing to trim.
+            return;
+        };
+        cells.retain(|k, _| if axis == 0 { k.0 != at } else { k.1 != at });
+    }
 }
 
 /// One of the eight symmetries of a rectangular grid: maps board `(i, j)`
@@ -264,6 +299,21 @@ mod tests {
         let g = grow(&pts, 17).unwrap();
         assert_eq!(g.points.len(), 35);
         assert_eq!((g.width * g.height), 35);
+    }
+
+    #[test]
+    fn a_lone_candidate_in_line_beyond_the_lattice_is_trimmed_off() {
+        // One saddle a row below the lattice's bottom row, in line with its columns.
+        let mut pts = lattice(7, 5, false);
+        let (a, b) = (pts[4 * 7 + 3], pts[3 * 7 + 3]);
+        pts.push(a + (a - b));
+        let g = grow(&pts, 17).unwrap();
+        let dims = (g.width.max(g.height), g.width.min(g.height));
+        assert_eq!((dims, g.points.len()), ((7, 5), 35));
+        // A hole inside is not trimmed away: no clean grid.
+        let mut holed = lattice(7, 5, false);
+        holed.remove(2 * 7 + 3);
+        assert!(grow(&holed, 0).unwrap().points.is_empty());
     }
 
     #[test]

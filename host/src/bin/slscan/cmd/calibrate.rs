@@ -80,6 +80,11 @@ pub struct Args {
     /// --sim: simulate and calibrate two heads and their head-to-head pose.
     #[arg(long, requires = "sim")]
     two_heads: bool,
+    /// --sim: rays per camera pixel and axis of the board renders (each pixel
+    /// integrates over its area); 1 renders one aliased ray per pixel.
+    #[arg(long, default_value_t = hil_sim::twin::CALIBRATION_PIXEL_SAMPLES,
+          value_parser = clap::value_parser!(u32).range(1..=16))]
+    pixel_samples: u32,
     /// --sim --two-heads / --scene: name of the second head.
     #[arg(long, default_value = "B")]
     head_b: String,
@@ -175,11 +180,13 @@ fn run_sim(args: &Args, options: &HeadOptions) -> anyhow::Result<()> {
             camera_px: args.camera,
             views: args.views,
             names: [&args.head, &args.head_b],
+            pixel_samples: args.pixel_samples,
             out: &args.out,
         };
         return super::calibrate_scene::run(&scene_args, &sensor, options);
     }
-    let sim = TwinHead::standard(args.views, &Detail::default());
+    let mut sim = TwinHead::standard(args.views, &Detail::default());
+    sim.pixel_samples = args.pixel_samples;
     let bit_depth = if args.bits == 16 {
         BitDepth::Sixteen
     } else {

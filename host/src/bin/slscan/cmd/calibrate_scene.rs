@@ -26,6 +26,8 @@ pub struct SceneArgs<'a> {
     pub views: usize,
     /// Head names.
     pub names: [&'a str; 2],
+    /// Rays per camera pixel and axis of the board renders.
+    pub pixel_samples: u32,
     /// Rig file to write.
     pub out: &'a Path,
 }
@@ -38,8 +40,11 @@ pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> any
         camera: args.camera_px,
         ..Detail::default()
     };
-    let heads = scene_heads(scene, &detail, args.views, args.names)
+    let mut heads = scene_heads(scene, &detail, args.views, args.names)
         .with_context(|| format!("setting up the heads of scene {scene}"))?;
+    for head in &mut heads.heads {
+        head.pixel_samples = args.pixel_samples;
+    }
     println!(
         "scene {scene}: {} board views per head, {} shared views for head-to-head, camera {}x{}",
         heads.heads[0].world_from_board.len(),

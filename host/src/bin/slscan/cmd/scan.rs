@@ -195,6 +195,9 @@ fn scan_hardware(
     let calibration = read_rig(calibration_path)
         .with_context(|| format!("reading the calibration {}", calibration_path.display()))?;
     let config = hardware_config(args, mode, &calibration)?;
+    // The board first: a missing port fails before any folder is made.
+    let board = SerialBoard::open(port, ClientConfig::default())
+        .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
     let cameras = FolderCamera::new(FolderCameraConfig {
         root: frames.to_owned(),
         heads: calibration
@@ -230,8 +233,6 @@ fn scan_hardware(
             PatternDelivery::Write
         },
     );
-    let board = SerialBoard::open(port, ClientConfig::default())
-        .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
     let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
     let source = format!("rig file {}", calibration_path.display());
     let result = scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?;
@@ -286,7 +287,7 @@ fn print_summary(report: &ScanReport) {
             h.name,
             h.points,
             f1(h.rmse_um),
-            f1(h.predicted_rms_um),
+            f1(Some(h.predicted_rms_um)),
             f1(h.median_error_um),
             h.outliers_over_1mm
                 .map_or("n/a".to_string(), |n| n.to_string()),
