@@ -1,14 +1,26 @@
 //! The full pipeline at seed 000's camera size: 3 periods x 4 steps = 12 frames of
-//! 3072x2048 -> wrapped phase -> heterodyne -> triangulation -> point cloud.
+//! 3072x2048 -> wrapped phase -> heterodyne -> triangulation -> point cloud with normals.
 //!
-//! Prints a table (fused pass, and the staged passes with their per-stage times) for 1 and
-//! 2 rayon threads. Frames come from the formula-based renderer (`slscan::synth`): a plane
-//! with the two calibration spheres, projector covering the view. Run:
-//! `cargo bench -p slscan --bench pipeline` (set `SLSCAN_BENCH_RUNS` to change the repeat).
+//! Prints a table for 1 and 2 rayon threads and two input types: `u16 (12-bit)` (what a
+//! machine-vision camera delivers; `ReconstructConfig::full_scale = 4095`) and `f32`
+//! (the same frames as floats in [0, 1]). Columns: the fused pass into a fresh result
+//! (`reconstruct`), the fused pass into a reused result (`reconstruct_into`, no fresh
+//! memory), and the staged passes with their per-stage wall times. Frames come from the
+//! formula-based renderer (`slscan::synth`): a plane with the two calibration spheres,
+//! projector covering the view. Run:
+//! `SLSCAN_BENCH_RUNS=5 cargo bench -p slscan --bench pipeline`.
+//!
+//! On the shared 2-core development machine (loaded, so CPU ms is the stable figure and
+//! CPU / 2 the 2-core estimate), u16 input: fused ~270 ms CPU fresh, ~225 ms reused
+//! (was ~760 ms before the row-vectorised stages). perf on the reused pass: decode ~1/3,
+//! heterodyne ~15 %, triangulation + per-pixel result ~20 %, cloud + normals ~25 %. A
+//! fresh result adds the kernel's clearing of ~400 MB (huge pages; ~50 ms, far more
+//! when other processes contend for memory).
 
 use std::time::Instant;
 
 use slscan::calibration::PinholeModel;
+use slscan::phase::Sample;
 use slscan::raster::Raster;
 use slscan::reconstruct::{ReconstructConfig, Reconstructor, StageTimes};
 use slscan::synth::{self, Lighting};
@@ -51,13 +63,27 @@ fn main() {
     };
     let frames = synth::render_fringe_set(&truth, &periods, 4, true, &light, 1);
     let refs: Vec<&Raster<f32>> = frames.iter().collect();
+    // What a machine-vision camera delivers: 12-bit samples in u16 words.
+    let frames_u16: Vec<Raster<u16>> = frames
+        .iter()
+        .map(|f| Raster {
+            width: f.width,
+            height: f.height,
+            data: f
+                .data
+                .iter()
+                .map(|&v| (v.clamp(0.0, 1.0) * FULL_SCALE_12_BIT + 0.5) as u16)
+                .collect(),
+        })
+        .collect();
+    let refs_u16: Vec<&Raster<u16>> = frames_u16.iter().collect();
     println!(
         "set-up (render 12 frames, not timed below): {:.2} s",
         t.elapsed().as_secs_f64()
     );
 
-    println!("| threads | constructor ms | fused wall ms | fused CPU ms | staged wall: phase | unwrap | triangulate | cloud | total ms | points |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("| input | threads | constructor ms | fused wall ms | fused CPU ms | reused wall ms | reused CPU ms | staged wall ms: phase | unwrap | triangulate | cloud + normals | total | points |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for threads in [1usize, 2] {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -67,33 +93,72 @@ fn main() {
             let t = Instant::now();
             let mut config = ReconstructConfig::new(periods.clone());
             config.normals = true;
-            let rec = Reconstructor::new(&camera, &projector, config).expect("set-up");
+            let rec = Reconstructor::new(&camera, &projector, config.clone()).expect("set-up");
             let ctor_ms = t.elapsed().as_secs_f64() * 1e3;
-            let mut fused = Vec::new();
-            let mut fused_cpu = Vec::new();
-            let mut points = 0;
-            for _ in 0..runs {
-                let (t, c) = (Instant::now(), cpu_s());
-                let out = rec.reconstruct(&refs, None).expect("reconstruct");
-                fused.push(t.elapsed().as_secs_f64() * 1e3);
-                fused_cpu.push((cpu_s() - c) * 1e3);
-                points = out.cloud.len();
-                drop(out);
-            }
-            let mut stages: Vec<StageTimes> = Vec::new();
-            for _ in 0..runs.min(3) {
-                let (out, times) = rec.reconstruct_staged(&refs).expect("staged");
-                drop(out);
-                stages.push(times);
-            }
-            let m = |f: fn(&StageTimes) -> f64| median(stages.iter().map(f).collect()) * 1e3;
-            let (p, u, tr, c) = (m(|s| s.phase_s), m(|s| s.unwrap_s), m(|s| s.triangulate_s), m(|s| s.cloud_s));
-            println!(
-                "| {threads} | {ctor_ms:.0} | {:.1} | {:.1} | {p:.1} | {u:.1} | {tr:.1} | {c:.1} | {:.1} | {points} |",
-                median(fused),
-                median(fused_cpu),
-                p + u + tr + c
-            );
+            config.full_scale = Some(FULL_SCALE_12_BIT);
+            let rec_u16 = Reconstructor::new(&camera, &projector, config).expect("set-up");
+            row(&rec_u16, &refs_u16, "u16 (12-bit)", threads, ctor_ms, runs);
+            row(&rec, &refs, "f32", threads, ctor_ms, runs);
         });
     }
+}
+
+/// 12-bit camera data: full white.
+const FULL_SCALE_12_BIT: f32 = 4095.0;
+
+/// Times the fused pass (`runs` times) and the staged passes (up to 3 times) on one
+/// input type; prints one table row of medians.
+fn row<T: Sample>(
+    rec: &Reconstructor,
+    refs: &[&Raster<T>],
+    input: &str,
+    threads: usize,
+    ctor_ms: f64,
+    runs: usize,
+) {
+    let mut fused = Vec::new();
+    let mut fused_cpu = Vec::new();
+    let mut points = 0;
+    for _ in 0..runs {
+        let (t, c) = (Instant::now(), cpu_s());
+        let out = rec.reconstruct(refs, None).expect("reconstruct");
+        fused.push(t.elapsed().as_secs_f64() * 1e3);
+        fused_cpu.push((cpu_s() - c) * 1e3);
+        points = out.cloud.len();
+        drop(out);
+    }
+    // The same into one reused result: no fresh memory, so no page faults.
+    let mut reused = Vec::new();
+    let mut reused_cpu = Vec::new();
+    let mut out = rec.reconstruct(refs, None).expect("reconstruct");
+    for _ in 0..runs {
+        let (t, c) = (Instant::now(), cpu_s());
+        rec.reconstruct_into(refs, None, &mut out)
+            .expect("reconstruct");
+        reused.push(t.elapsed().as_secs_f64() * 1e3);
+        reused_cpu.push((cpu_s() - c) * 1e3);
+    }
+    assert_eq!(out.cloud.len(), points);
+    drop(out);
+    let mut stages: Vec<StageTimes> = Vec::new();
+    for _ in 0..runs.min(3) {
+        let (out, times) = rec.reconstruct_staged(refs).expect("staged");
+        drop(out);
+        stages.push(times);
+    }
+    let m = |f: fn(&StageTimes) -> f64| median(stages.iter().map(f).collect()) * 1e3;
+    let (p, u, tr, c) = (
+        m(|s| s.phase_s),
+        m(|s| s.unwrap_s),
+        m(|s| s.triangulate_s),
+        m(|s| s.cloud_s),
+    );
+    println!(
+        "| {input} | {threads} | {ctor_ms:.0} | {:.1} | {:.1} | {:.1} | {:.1} | {p:.1} | {u:.1} | {tr:.1} | {c:.1} | {:.1} | {points} |",
+        median(fused),
+        median(fused_cpu),
+        median(reused),
+        median(reused_cpu),
+        p + u + tr + c
+    );
 }

@@ -18,6 +18,7 @@ pub mod calibration;
 pub mod demultiplex;
 pub mod fit;
 pub mod fusion;
+pub mod huge_pages;
 pub mod io;
 pub mod patterns;
 pub mod phase;

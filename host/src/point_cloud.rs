@@ -66,6 +66,14 @@ pub fn grid_normal(
     if !(ok(&l) && ok(&r) && ok(&u) && ok(&d)) {
         return nan;
     }
+    neighbour_normal([l, r, u, d], get(x, y), viewpoint)
+}
+
+/// The unit normal at point `p` from its left, right, up and down neighbours
+/// (`(r - l) x (d - u)`), turned to face `viewpoint`; NaN when the cross product is zero.
+/// Any NaN neighbour gives NaN.
+#[inline]
+pub fn neighbour_normal([l, r, u, d]: [[f32; 3]; 4], p: [f32; 3], viewpoint: [f32; 3]) -> [f32; 3] {
     let a = [r[0] - l[0], r[1] - l[1], r[2] - l[2]];
     let b = [d[0] - u[0], d[1] - u[1], d[2] - u[2]];
     let mut n = [
@@ -75,9 +83,8 @@ pub fn grid_normal(
     ];
     let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     if len == 0.0 {
-        return nan;
+        return [f32::NAN; 3];
     }
-    let p = get(x, y);
     let to_view = [
         viewpoint[0] - p[0],
         viewpoint[1] - p[1],

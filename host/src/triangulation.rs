@@ -2,8 +2,9 @@
 //! projector rays (both directions), with per-point predicted noise.
 //!
 //! [`Triangulator::new`] does the expensive part once per camera: it undistorts every
-//! camera pixel into a world ray and expresses that ray in the projector frame. Per frame,
-//! a projector column `u` then costs a handful of multiply-adds:
+//! camera pixel (stored as normalised coordinates, 8 bytes a pixel, so the per-frame pass
+//! reads little). Per frame, a projector column `u` then costs a handful of multiply-adds
+//! ([`Triangulator::intersect_columns`] does a whole row, vectorised, in the camera frame):
 //!
 //! ```text
 //! camera ray  X(s) = C + s d                    (world, |d| = 1)
@@ -17,7 +18,7 @@
 //! realistic lenses). Two directions (`u`, `v`) use the least-squares closest point of the
 //! camera ray and the projector ray.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
 use crate::calibration::{CameraModel, ProjectorModel};
@@ -38,15 +39,42 @@ pub struct Triangulator {
     projector: ProjectorModel,
     width: usize,
     height: usize,
-    /// World ray direction per camera pixel; NaN where undistortion failed.
-    rays: Vec<[f32; 3]>,
-    /// The same ray in the projector frame (`e = R_p d`).
-    rays_proj: Vec<[f32; 3]>,
-    /// Camera-frame depth per unit ray length (`Z_c = s * depth_per_m`).
-    depth_per_m: Vec<f32>,
+    /// Undistorted normalised camera coordinates `(x, y)` per pixel (the ray is
+    /// `m = (x, y, 1)` in the camera frame); NaN where undistortion failed. 8 bytes per
+    /// pixel: the per-frame passes read this, so it is kept small.
+    normalised: Vec<[f32; 2]>,
+    /// Camera frame -> world rotation (`R_c^T`), rows.
+    cam_to_world: [[f32; 3]; 3],
+    /// Camera frame -> projector frame rotation (`R_p R_c^T`), rows.
+    cam_to_proj: [[f32; 3]; 3],
     centre: [f32; 3],
     q: [f32; 3],
     projector_distorted: bool,
+}
+
+/// Per-pixel outputs of [`Triangulator::intersect_columns`], one entry per pixel of a run
+/// (NaN where there is no point). Reused between runs to avoid allocation.
+#[derive(Clone, Debug, Default)]
+pub struct ColumnHits {
+    /// World x, y, z, metres.
+    pub point_m: [Vec<f32>; 3],
+    /// Depth along the camera axis, metres.
+    pub depth_m: Vec<f32>,
+    /// `|d range / d u|`, metres per projector pixel (see [`Triangulator::range_per_px`]).
+    pub range_per_px: Vec<f32>,
+}
+
+impl ColumnHits {
+    /// Sizes every output for a run of `len` pixels.
+    pub fn resize(&mut self, len: usize) {
+        for v in self
+            .point_m
+            .iter_mut()
+            .chain([&mut self.depth_m, &mut self.range_per_px])
+        {
+            v.resize(len, f32::NAN);
+        }
+    }
 }
 
 /// One triangulated point.
@@ -61,47 +89,125 @@ pub struct Triangulated {
 }
 
 impl Triangulator {
-    /// Precomputes rays for every camera pixel (parallel; the costly step).
+    /// Undistorts every camera pixel once (parallel; the costly step).
     pub fn new(camera: &CameraModel, projector: &ProjectorModel) -> Self {
         let (width, height) = (camera.width_px as usize, camera.height_px as usize);
-        let rp = projector.pose.rotation;
         let centre = camera.centre_m();
         let q = projector.pose.apply(&centre);
-        let per_pixel: Vec<([f32; 3], [f32; 3], f32)> = (0..width * height)
+        let normalised: Vec<[f32; 2]> = (0..width * height)
             .into_par_iter()
             .map(|i| {
                 let (u, v) = ((i % width) as f64, (i / width) as f64);
                 match camera.pixel_to_normalised(u, v) {
-                    Some((x, y)) => {
-                        let cam_dir = Vector3::new(x, y, 1.0);
-                        let norm = cam_dir.norm();
-                        let d = camera.pose.rotation.transpose() * cam_dir / norm;
-                        let e = rp * d;
-                        (to_f32(&d), to_f32(&e), (1.0 / norm) as f32)
-                    }
-                    None => ([f32::NAN; 3], [f32::NAN; 3], f32::NAN),
+                    Some((x, y)) => [x as f32, y as f32],
+                    None => [f32::NAN; 2],
                 }
             })
             .collect();
-        let mut rays = Vec::with_capacity(per_pixel.len());
-        let mut rays_proj = Vec::with_capacity(per_pixel.len());
-        let mut depth_per_m = Vec::with_capacity(per_pixel.len());
-        for (d, e, z) in per_pixel {
-            rays.push(d);
-            rays_proj.push(e);
-            depth_per_m.push(z);
-        }
+        let rows = |m: &Matrix3<f64>| {
+            let mut r = [[0.0f32; 3]; 3];
+            for (i, row) in r.iter_mut().enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
+                    *v = m[(i, j)] as f32;
+                }
+            }
+            r
+        };
+        let cam_to_world = camera.pose.rotation.transpose();
         Self {
             camera: *camera,
             projector: *projector,
             width,
             height,
-            rays,
-            rays_proj,
-            depth_per_m,
+            normalised,
+            cam_to_world: rows(&cam_to_world),
+            cam_to_proj: rows(&(projector.pose.rotation * cam_to_world)),
             centre: to_f32(&centre.coords),
             q: to_f32(&q.coords),
             projector_distorted: !projector.distortion.is_zero(),
+        }
+    }
+
+    /// Pixel `index`'s unit world ray `d`, the same ray in the projector frame `e`, and
+    /// the camera depth per metre along it (`1 / |m|`).
+    #[inline]
+    fn ray(&self, index: usize) -> ([f32; 3], [f32; 3], f32) {
+        let [x, y] = self.normalised[index];
+        let inv_norm = 1.0 / (x * x + y * y + 1.0).sqrt();
+        let rotate = |r: &[[f32; 3]; 3]| {
+            let mut out = [0.0f32; 3];
+            for (o, row) in out.iter_mut().zip(r) {
+                *o = (row[0] * x + row[1] * y + row[2]) * inv_norm;
+            }
+            out
+        };
+        (
+            rotate(&self.cam_to_world),
+            rotate(&self.cam_to_proj),
+            inv_norm,
+        )
+    }
+
+    /// Intersects a run of pixels (`first_index ..`, one per entry of `column_px`) with
+    /// the projector column planes `column_px` (NaN gives no point); fills `out` with the
+    /// results of [`Triangulator::intersect`] and [`Triangulator::range_per_px`].
+    ///
+    /// For an undistorted projector this is the closed form in the camera frame, branch
+    /// free so that it vectorises: with `m = (x, y, 1)`, `a = (R_pc m).x`,
+    /// `b = (R_pc m).z` and `x_n = (u - cx) / fx`, the depth is
+    /// `Z = (x_n q.z - q.x) / (a - x_n b)` and the point `C + Z R_c^T m`. A distorted
+    /// projector goes pixel by pixel through [`Triangulator::intersect`].
+    ///
+    /// # Panics
+    /// If the run extends past the last camera pixel (a caller bug, not bad data).
+    pub fn intersect_columns(&self, first_index: usize, column_px: &[f32], out: &mut ColumnHits) {
+        let len = column_px.len();
+        out.resize(len);
+        let rays = &self.normalised[first_index..first_index + len];
+        if self.projector_distorted {
+            for (x, (&u, _)) in column_px.iter().zip(rays).enumerate() {
+                let i = first_index + x;
+                let hit = self.intersect(i, ProjectorAxis::Column, u);
+                let (p, d, r) = match hit {
+                    Some(t) => (
+                        [t.point_m.x, t.point_m.y, t.point_m.z],
+                        t.depth_m,
+                        self.range_per_px(i, ProjectorAxis::Column, u),
+                    ),
+                    None => ([f32::NAN; 3], f32::NAN, f32::NAN),
+                };
+                for (axis, v) in p.into_iter().enumerate() {
+                    out.point_m[axis][x] = v;
+                }
+                out.depth_m[x] = d;
+                out.range_per_px[x] = r;
+            }
+            return;
+        }
+        let k = &self.projector.intrinsics;
+        let (inv_fx, cx) = ((1.0 / k.fx) as f32, k.cx as f32);
+        let (rp, rw, c, q) = (&self.cam_to_proj, &self.cam_to_world, self.centre, self.q);
+        let [px, py, pz] = &mut out.point_m;
+        let (px, py, pz) = (&mut px[..len], &mut py[..len], &mut pz[..len]);
+        let (depth, rpp) = (&mut out.depth_m[..len], &mut out.range_per_px[..len]);
+        for i in 0..len {
+            let [x, y] = rays[i];
+            let a = rp[0][0] * x + rp[0][1] * y + rp[0][2];
+            let b = rp[2][0] * x + rp[2][1] * y + rp[2][2];
+            let xn = (column_px[i] - cx) * inv_fx;
+            let den = a - xn * b;
+            let z = (xn * q[2] - q[0]) / den;
+            // In front of the camera and of the projector (NaN fails both).
+            let ok = z > 0.0 && z < f32::INFINITY && q[2] + z * b > 0.0;
+            let z = if ok { z } else { f32::NAN };
+            px[i] = c[0] + z * (rw[0][0] * x + rw[0][1] * y + rw[0][2]);
+            py[i] = c[1] + z * (rw[1][0] * x + rw[1][1] * y + rw[1][2]);
+            pz[i] = c[2] + z * (rw[2][0] * x + rw[2][1] * y + rw[2][2]);
+            depth[i] = z;
+            // d range / d u = |m| dZ/du, dZ/dx_n = (q.z a - q.x b) / den^2.
+            let norm = (x * x + y * y + 1.0).sqrt();
+            let dz = ((q[2] * a - q[0] * b) / (den * den) * inv_fx).abs();
+            rpp[i] = if ok { norm * dz } else { f32::NAN };
         }
     }
 
@@ -135,7 +241,7 @@ impl Triangulator {
             ProjectorAxis::Column => (0, k.fx as f32, k.cx as f32),
             ProjectorAxis::Row => (1, k.fy as f32, k.cy as f32),
         };
-        let e = self.rays_proj[index];
+        let (d, e, depth_per_m) = self.ray(index);
         let xd = (coord_px - c) / f;
         let mut xn = xd;
         let mut s = self.solve(e, a, xn)?;
@@ -154,7 +260,6 @@ impl Triangulator {
                 s = self.solve(e, a, xn)?;
             }
         }
-        let d = self.rays[index];
         Some(Triangulated {
             point_m: Point3::new(
                 self.centre[0] + s * d[0],
@@ -162,7 +267,7 @@ impl Triangulator {
                 self.centre[2] + s * d[2],
             ),
             range_m: s,
-            depth_m: s * self.depth_per_m[index],
+            depth_m: s * depth_per_m,
         })
     }
 
@@ -218,7 +323,7 @@ impl Triangulator {
             ProjectorAxis::Column => (0, k.fx as f32, k.cx as f32),
             ProjectorAxis::Row => (1, k.fy as f32, k.cy as f32),
         };
-        let e = self.rays_proj[index];
+        let (_, e, _) = self.ray(index);
         let xn = (coord_px - c) / f;
         let den = e[a] - xn * e[2];
         ((self.q[2] * e[a] - self.q[a] * e[2]) / (den * den) / f).abs()
@@ -229,7 +334,7 @@ impl Triangulator {
     /// (metres; a consistency measure). `None` for parallel rays or points behind.
     pub fn intersect_two_rays(&self, index: usize, u: f64, v: f64) -> Option<(Triangulated, f32)> {
         let proj_ray = self.projector.pixel_ray(u, v)?;
-        let d = self.rays[index];
+        let (d, _, depth_per_m) = self.ray(index);
         let d = Vector3::new(f64::from(d[0]), f64::from(d[1]), f64::from(d[2]));
         let c = Vector3::new(
             f64::from(self.centre[0]),
@@ -246,7 +351,7 @@ impl Triangulator {
             Triangulated {
                 point_m: Point3::new(p.x as f32, p.y as f32, p.z as f32),
                 range_m: range as f32,
-                depth_m: (range as f32) * self.depth_per_m[index],
+                depth_m: (range as f32) * depth_per_m,
             },
             gap as f32,
         ))
@@ -352,6 +457,59 @@ mod tests {
         let fd = (b.range_m - a.range_m).abs();
         let an = tri.range_per_px(i, ProjectorAxis::Column, u);
         assert!((fd - an).abs() < 0.01 * an, "{fd} vs {an}");
+    }
+
+    #[test]
+    fn column_runs_match_the_pixel_path() {
+        for distorted in [false, true] {
+            let (camera, projector) = rig(distorted);
+            let tri = Triangulator::new(&camera, &projector);
+            let (w, h) = tri.size();
+            let mut hits = ColumnHits::default();
+            let mut checked = 0;
+            for y in [0usize, 13, 47] {
+                // Columns of points between 0.4 and 0.7 m, plus NaN and out-of-range ones.
+                let u: Vec<f32> = (0..w)
+                    .map(|x| {
+                        let depth = 0.4 + 0.3 * ((x * 7 + y) % 11) as f64 / 10.0;
+                        let ray = camera.pixel_ray(x as f64, y as f64).unwrap();
+                        let px = projector.project(&(ray.origin_m + ray.direction * depth));
+                        match (x % 9, px) {
+                            (4, _) => f32::NAN,
+                            (5, _) => 1e9,
+                            (_, Some(px)) => px.x as f32,
+                            (_, None) => f32::NAN,
+                        }
+                    })
+                    .collect();
+                tri.intersect_columns(y * w, &u, &mut hits);
+                for (x, &ux) in u.iter().enumerate() {
+                    let i = y * w + x;
+                    let want = tri.intersect(i, ProjectorAxis::Column, ux);
+                    let got = [hits.point_m[0][x], hits.point_m[1][x], hits.point_m[2][x]];
+                    let Some(want) = want else {
+                        assert!(got[0].is_nan() && hits.depth_m[x].is_nan(), "{x},{y}");
+                        continue;
+                    };
+                    for a in 0..3 {
+                        assert!(
+                            (got[a] - want.point_m[a]).abs() < 2e-6,
+                            "{x},{y}: {got:?} {want:?}"
+                        );
+                    }
+                    assert!((hits.depth_m[x] - want.depth_m).abs() < 2e-6);
+                    let r = tri.range_per_px(i, ProjectorAxis::Column, ux);
+                    assert!(
+                        (hits.range_per_px[x] - r).abs() < 1e-5 * r,
+                        "{} vs {r}",
+                        hits.range_per_px[x]
+                    );
+                    checked += 1;
+                }
+            }
+            assert!(checked > 100, "{checked}");
+            assert!(h > 47);
+        }
     }
 
     #[test]

@@ -86,3 +86,16 @@ fn projector_gamma_breaks_the_multiplexed_overlap_unless_precompensated() {
         assert!(*ratio <= 1.10, "head {}: ratio {ratio:.3} ({m:?})", m.name);
     }
 }
+
+#[test]
+fn a_pre_compensation_gamma_that_is_not_positive_is_refused() {
+    for gamma in [0.0, -2.2, f64::NAN] {
+        let mut config = ScanConfig::new("large-part");
+        config.precompensate_gamma = Some(gamma);
+        let err = run_sim(&config, &mut |_| {}).expect_err("bad gamma");
+        assert!(
+            matches!(err, slscan::scan::ScanError::BadGamma { gamma: g } if g.to_bits() == gamma.to_bits()),
+            "{err:?}"
+        );
+    }
+}

@@ -35,6 +35,22 @@ pub struct HeadReport {
     pub overlap_points: Option<usize>,
     /// `rmse_um` over those points only, micrometres (null when none).
     pub overlap_rmse_um: Option<f64>,
+    /// Simultaneous mode: the overlap the flat fields measured against the
+    /// twin's true overlap; null in the other modes and on hardware.
+    pub aliased_mask: Option<AliasedMaskReport>,
+}
+
+/// One camera's overlap as the flat fields measured it, against the truth.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct AliasedMaskReport {
+    /// Pixels the flat fields show lit by both projectors.
+    pub measured_overlap_pixels: usize,
+    /// Pixels the twin's truth says both projectors light.
+    pub true_overlap_pixels: usize,
+    /// Intersection over union of the two.
+    pub iou: f64,
+    /// Share of the true overlap that was measured.
+    pub recall: f64,
 }
 
 /// The ICP refinement of the calibrated head-to-head pose.
@@ -175,6 +191,7 @@ mod tests {
             overlap_pixels: Some(0),
             overlap_points: Some(0),
             overlap_rmse_um: Some(f64::NAN),
+            aliased_mask: None,
         };
         let report = ScanReport {
             scene: "x".into(),

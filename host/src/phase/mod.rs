@@ -14,6 +14,9 @@
 //! Fourier transform profilometry in [`ftp`].
 
 pub mod ftp;
+mod sample;
+
+pub use sample::Sample;
 
 use crate::raster::Raster;
 
@@ -153,8 +156,8 @@ impl PhaseShift {
 
     /// Decodes one image row: `rows[n]` is the row of frame n; outputs are per column.
     ///
-    /// The loops run over columns with the shift index outside, so they vectorise; the
-    /// per-pixel results are bit-identical to [`PhaseShift::decode`] (same operation order).
+    /// The per-pixel results are bit-identical to [`PhaseShift::decode`] (same operation
+    /// order); see [`PhaseShift::decode_row_scaled`] for integer frames.
     pub fn decode_row(
         &self,
         rows: &[&[f32]],
@@ -162,24 +165,50 @@ impl PhaseShift {
         modulation: &mut [f32],
         background: &mut [f32],
     ) {
+        self.decode_row_scaled(rows, 1.0, phase, modulation, background);
+    }
+
+    /// [`PhaseShift::decode_row`] for any [`Sample`] type: each sample is multiplied by
+    /// `scale` (`1 / full scale` gives modulation and background in `[0, 1]` units; the
+    /// phase does not depend on it). With `scale = 1` the result is bit-identical to
+    /// [`PhaseShift::decode`].
+    ///
+    /// Works in tiles of columns so the sums stay in L1 cache, with the shift index
+    /// outside the column loops so they vectorise.
+    pub fn decode_row_scaled<T: Sample>(
+        &self,
+        rows: &[&[T]],
+        scale: f32,
+        phase: &mut [f32],
+        modulation: &mut [f32],
+        background: &mut [f32],
+    ) {
+        const TILE: usize = 256;
         let width = phase.len();
-        let mut re = vec![0.0f32; width];
-        let mut im = vec![0.0f32; width];
-        background[..width].fill(0.0);
-        for ((row, &c), &s) in rows.iter().zip(&self.cos).zip(&self.sin) {
-            let row = &row[..width];
-            for x in 0..width {
-                let i = row[x];
-                re[x] += i * c;
-                im[x] -= i * s;
-                background[x] += i;
-            }
-        }
         let n = self.steps as f32;
-        for x in 0..width {
-            phase[x] = fast_atan2(im[x], re[x]);
-            modulation[x] = (2.0 / n) * (re[x] * re[x] + im[x] * im[x]).sqrt();
-            background[x] /= n;
+        let mut x0 = 0;
+        while x0 < width {
+            let len = TILE.min(width - x0);
+            let (mut re, mut im, mut total) = ([0.0f32; TILE], [0.0f32; TILE], [0.0f32; TILE]);
+            let (re, im, total) = (&mut re[..len], &mut im[..len], &mut total[..len]);
+            for ((row, &c), &s) in rows.iter().zip(&self.cos).zip(&self.sin) {
+                let row = &row[x0..x0 + len];
+                for x in 0..len {
+                    let i = row[x].to_f32() * scale;
+                    re[x] += i * c;
+                    im[x] -= i * s;
+                    total[x] += i;
+                }
+            }
+            let phase = &mut phase[x0..x0 + len];
+            let modulation = &mut modulation[x0..x0 + len];
+            let background = &mut background[x0..x0 + len];
+            for x in 0..len {
+                phase[x] = fast_atan2(im[x], re[x]);
+                modulation[x] = (2.0 / n) * (re[x] * re[x] + im[x] * im[x]).sqrt();
+                background[x] = total[x] / n;
+            }
+            x0 += len;
         }
     }
 
@@ -221,7 +250,7 @@ impl PhaseShift {
 }
 
 /// Checks that frames are non-empty and all the same size; returns `(width, height)`.
-pub fn check_sizes(frames: &[&Raster<f32>]) -> Result<(usize, usize), PhaseError> {
+pub fn check_sizes<T>(frames: &[&Raster<T>]) -> Result<(usize, usize), PhaseError> {
     let first = frames
         .first()
         .ok_or(PhaseError::NotEnoughFrames { got: 0, need: 1 })?;

@@ -8,24 +8,27 @@
 //!   --(sigma: CRB phase noise -> projector px -> metres along the ray)--> quality
 //! ```
 //!
-//! [`Reconstructor::new`] does the set-up once per head (rays, shift tables, beat tree);
-//! [`Reconstructor::reconstruct`] runs all stages in one fused pass over the pixels
-//! (rayon over rows), so each frame sample is read once. [`Reconstructor::reconstruct_staged`]
-//! runs the same stages as separate passes and times them, for the bench's breakdown;
-//! both give identical results (tested).
+//! [`Reconstructor::new`] does the set-up once per head (undistorted pixel coordinates,
+//! shift tables, beat tree); [`Reconstructor::reconstruct`] runs all stages in one fused
+//! pass (rayon over rows; per row decode -> heterodyne -> triangulation as whole-row loops
+//! that vectorise, see `rows.rs`), so each frame sample is read once. Frames may be
+//! `u8`/`u16` as cameras deliver them, or `f32` ([`crate::phase::Sample`]).
+//! [`Reconstructor::reconstruct_into`] reuses a previous result's buffers.
+//! [`Reconstructor::reconstruct_staged`] runs the same row functions as separate passes
+//! and times them, for the bench's breakdown; both give identical results (tested).
 
 mod cloud;
-
-use std::time::Instant;
+mod rows;
+mod staged;
 
 use rayon::prelude::*;
 
 use crate::calibration::{CameraModel, Head, ProjectorModel};
-use crate::phase::{PhaseError, PhaseShift};
+use crate::phase::{PhaseError, PhaseShift, Sample};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::triangulation::{ProjectorAxis, Triangulator};
-use crate::unwrap::heterodyne::{Heterodyne, MAX_PERIODS};
+use crate::unwrap::heterodyne::Heterodyne;
 use crate::unwrap::{PixelStatus, UnwrapError};
 
 /// Which projector coordinates the frames encode.
@@ -59,6 +62,10 @@ pub struct ReconstructConfig {
     pub order_sigmas: f64,
     /// Compute normals for the cloud.
     pub normals: bool,
+    /// Frame value of full white. `None`: the sample type's ([`Sample::FULL_SCALE`]:
+    /// 1 for `f32`, 255 for `u8`, 65535 for `u16`); 12-bit data in `u16` give 4095.
+    /// Modulation, background and the thresholds above are in units of full scale.
+    pub full_scale: Option<f32>,
 }
 
 impl ReconstructConfig {
@@ -73,6 +80,7 @@ impl ReconstructConfig {
             max_residual_rad: std::f64::consts::FRAC_PI_2,
             order_sigmas: 5.0,
             normals: true,
+            full_scale: None,
         }
     }
 
@@ -176,13 +184,6 @@ pub struct StageTimes {
     pub cloud_s: f64,
 }
 
-/// One decoded row of one direction: `phase[p * width + x]` per period p.
-struct RowPhases {
-    phase: Vec<f32>,
-    modulation: Vec<f32>,
-    background: Vec<f32>,
-}
-
 /// The pipeline for one head, set up once.
 #[derive(Clone, Debug)]
 pub struct Reconstructor {
@@ -252,10 +253,10 @@ impl Reconstructor {
         &self.triangulator
     }
 
-    fn check(
+    fn check<T>(
         &self,
-        frames_u: &[&Raster<f32>],
-        frames_v: Option<&[&Raster<f32>]>,
+        frames_u: &[&Raster<T>],
+        frames_v: Option<&[&Raster<T>]>,
     ) -> Result<(usize, usize), ReconstructError> {
         let c = &self.config;
         let expected = c.frames_per_direction();
@@ -279,7 +280,7 @@ impl Reconstructor {
                 }
             }
         }
-        let all: Vec<&Raster<f32>> = frames_u
+        let all: Vec<&Raster<T>> = frames_u
             .iter()
             .chain(frames_v.unwrap_or(&[]))
             .copied()
@@ -294,102 +295,35 @@ impl Reconstructor {
         Ok(size)
     }
 
-    /// Decodes one direction of one row: per period, wrapped phase and modulation (row
-    /// loops, vectorised), background of the finest period.
-    fn decode_rows(&self, rows: &[&[f32]], width: usize) -> RowPhases {
-        let n = self.config.steps;
-        let k = self.config.periods_px.len();
-        let mut out = RowPhases {
-            phase: vec![0.0; k * width],
-            modulation: vec![0.0; k * width],
-            background: vec![0.0; width],
-        };
-        let mut scratch = vec![0.0f32; width];
-        for p in 0..k {
-            let bg = if p == 0 {
-                &mut out.background
-            } else {
-                &mut scratch
-            };
-            self.shift.decode_row(
-                &rows[p * n..(p + 1) * n],
-                &mut out.phase[p * width..(p + 1) * width],
-                &mut out.modulation[p * width..(p + 1) * width],
-                bg,
-            );
-        }
-        out
-    }
-
-    /// Unwraps one pixel of a decoded row: (absolute phase or status, min modulation,
-    /// modulation of the finest period).
-    #[inline]
-    fn unwrap_at(
-        &self,
-        row: &RowPhases,
-        heterodyne: &Heterodyne,
-        width: usize,
-        x: usize,
-    ) -> (Result<f32, PixelStatus>, f32, f32) {
-        let k = self.config.periods_px.len();
-        let mut wrapped = [0.0f32; MAX_PERIODS];
-        let mut min_b = f32::INFINITY;
-        for (p, w) in wrapped.iter_mut().enumerate().take(k) {
-            *w = row.phase[p * width + x];
-            min_b = min_b.min(row.modulation[p * width + x]);
-        }
-        // Written so that a NaN modulation (corrupt samples) is masked too.
-        let usable = min_b >= self.config.min_modulation;
-        let phase = if !usable {
-            Err(PixelStatus::Masked)
-        } else if min_b < self.min_reliable_modulation {
-            Err(PixelStatus::Unreliable)
-        } else {
-            heterodyne
-                .unwrap_pixel(&wrapped[..k])
-                .ok_or(PixelStatus::Unreliable)
-        };
-        (phase, min_b, row.modulation[x])
-    }
-
-    /// Triangulates pixel `i` from absolute phases; fills `out`.
-    #[inline]
-    fn triangulate(
+    /// Triangulates pixel `i` from both absolute phases (ray / ray); fills `out`. The
+    /// column-only path is the vectorised [`Triangulator::intersect_columns`].
+    fn triangulate_two_rays(
         &self,
         i: usize,
         phase_u: f32,
-        phase_v: Option<f32>,
+        phase_v: f32,
         b0: f32,
         out: &mut PixelResult,
     ) {
         let p0 = self.config.periods_px[0] as f32;
         let tau = std::f32::consts::TAU;
-        let u = phase_u * p0 / tau;
+        let (u, v) = (phase_u * p0 / tau, phase_v * p0 / tau);
         let proj = self.triangulator.projector();
         let inside = |c: f32, extent: u32| c >= -0.5 && c <= extent as f32 - 0.5;
         out.phase_u = phase_u;
         out.status = PixelStatus::Unreliable;
-        if !inside(u, proj.width_px) {
+        if !inside(u, proj.width_px) || !inside(v, proj.height_px) {
             return;
         }
-        let hit = match phase_v {
-            None => self.triangulator.intersect(i, ProjectorAxis::Column, u),
-            Some(pv) => {
-                let v = pv * p0 / tau;
-                if !inside(v, proj.height_px) {
-                    return;
-                }
-                self.triangulator
-                    .intersect_two_rays(i, f64::from(u), f64::from(v))
-                    .map(|(t, _gap)| t)
-            }
-        };
-        let Some(t) = hit else {
+        let Some((t, _gap)) = self
+            .triangulator
+            .intersect_two_rays(i, f64::from(u), f64::from(v))
+        else {
             return;
         };
         // CRB phase noise of the finest period -> projector pixels -> metres along the ray.
-        // With both directions this is the column-only figure: an upper bound, since the
-        // two-ray solution also uses the row.
+        // This is the column-only figure: an upper bound, since the two-ray solution also
+        // uses the row.
         let sigma_phi = self.noise_times_crb / b0;
         let sigma_px = sigma_phi * p0 / tau;
         out.sigma_m = self.triangulator.range_per_px(i, ProjectorAxis::Column, u) * sigma_px;
@@ -398,145 +332,79 @@ impl Reconstructor {
         out.status = PixelStatus::Valid;
     }
 
-    /// All stages in one fused pass over the pixels.
-    pub fn reconstruct(
+    /// `1 / full scale` for frames of sample type `T`.
+    fn sample_scale<T: Sample>(&self) -> f32 {
+        1.0 / self.config.full_scale.unwrap_or(T::FULL_SCALE)
+    }
+
+    /// All stages in one fused pass over the pixels: rayon over rows, each row decoded,
+    /// unwrapped and triangulated while it is in cache. Frames may be `f32`, `u16` or
+    /// `u8` (see [`ReconstructConfig::full_scale`]).
+    pub fn reconstruct<T: Sample>(
         &self,
-        frames_u: &[&Raster<f32>],
-        frames_v: Option<&[&Raster<f32>]>,
+        frames_u: &[&Raster<T>],
+        frames_v: Option<&[&Raster<T>]>,
     ) -> Result<Reconstruction, ReconstructError> {
+        let mut out = Reconstruction::default();
+        self.reconstruct_into(frames_u, frames_v, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Reconstructor::reconstruct`] into an existing result, reusing its buffers: a
+    /// scanner decoding scan after scan saves the fresh-memory page faults (about a
+    /// third of the time at 6 MP). `out` is overwritten; on error it is left as it was.
+    pub fn reconstruct_into<T: Sample>(
+        &self,
+        frames_u: &[&Raster<T>],
+        frames_v: Option<&[&Raster<T>]>,
+        out: &mut Reconstruction,
+    ) -> Result<(), ReconstructError> {
         let (width, height) = self.check(frames_u, frames_v)?;
-        let mut pixels = vec![EMPTY; width * height];
-        pixels
+        let scale = self.sample_scale::<T>();
+        let pixels = &mut out.pixels;
+        (pixels.width, pixels.height) = (width, height);
+        // Every element is overwritten below; memory is only allocated when it grows.
+        if pixels.data.capacity() < width * height {
+            pixels.data = crate::huge_pages::filled_vec(width * height, EMPTY);
+        } else {
+            pixels.data.resize(width * height, EMPTY);
+        }
+        let counts: Vec<usize> = pixels
+            .data
             .par_chunks_mut(width)
             .enumerate()
-            .for_each(|(y, row)| {
-                // This row of every frame, sliced once, decoded with vectorised row loops.
-                let span = y * width..(y + 1) * width;
-                let rows_u: Vec<&[f32]> = frames_u.iter().map(|f| &f.data[span.clone()]).collect();
-                let dec_u = self.decode_rows(&rows_u, width);
-                let dec_v = frames_v.map(|fv| {
-                    let rows: Vec<&[f32]> = fv.iter().map(|f| &f.data[span.clone()]).collect();
-                    self.decode_rows(&rows, width)
-                });
-                for (x, out) in row.iter_mut().enumerate() {
-                    let i = y * width + x;
-                    let (pu, mut b, b0) = self.unwrap_at(&dec_u, &self.heterodyne_u, width, x);
-                    out.background = dec_u.background[x];
-                    let pv = dec_v.as_ref().map(|dv| {
-                        let (pv, bv, _) = self.unwrap_at(dv, &self.heterodyne_v, width, x);
-                        b = b.min(bv);
-                        pv
-                    });
-                    out.modulation = b;
-                    let phases = match (pu, pv) {
-                        (Ok(u), None) => Ok((u, None)),
-                        (Ok(u), Some(Ok(v))) => Ok((u, Some(v))),
-                        (Err(s), _) | (_, Some(Err(s))) => Err(s),
-                    };
-                    match phases {
-                        Ok((u, v)) => self.triangulate(i, u, v, b0, out),
-                        Err(s) => out.status = s,
-                    }
-                }
-            });
-        let pixels = Raster {
-            width,
-            height,
-            data: pixels,
-        };
-        let cloud = self.cloud(&pixels);
-        Ok(Reconstruction { pixels, cloud })
-    }
-
-    /// The same stages as separate passes, timed (for benches and profiling).
-    pub fn reconstruct_staged(
-        &self,
-        frames_u: &[&Raster<f32>],
-    ) -> Result<(Reconstruction, StageTimes), ReconstructError> {
-        if self.config.directions != Directions::Columns {
-            return Err(ReconstructError::RowFrames {
-                directions: self.config.directions,
-                given: false,
-            });
-        }
-        let (width, height) = self.check(frames_u, None)?;
-        let n = self.config.steps;
-        let mut times = StageTimes::default();
-
-        let t = Instant::now();
-        let wrapped: Vec<crate::phase::WrappedPhase> = frames_u
-            .chunks(n)
-            .map(|set| self.shift.wrapped_phase(set))
-            .collect::<Result<_, _>>()?;
-        times.phase_s = t.elapsed().as_secs_f64();
-
-        let t = Instant::now();
-        let min_mod = self.config.min_modulation;
-        let mask_data: Vec<bool> = (0..width * height)
-            .into_par_iter()
-            .map(|i| {
-                let b = wrapped
-                    .iter()
-                    .map(|w| w.modulation.data[i])
-                    .fold(f32::INFINITY, f32::min);
-                b >= min_mod
+            .map_init(rows::Scratch::default, |scratch, (y, row)| {
+                self.fused_row(y, frames_u, frames_v, scale, scratch, row)
             })
             .collect();
-        let mask = Raster {
-            width,
-            height,
-            data: mask_data,
-        };
-        let phase_maps: Vec<&Raster<f32>> = wrapped.iter().map(|w| &w.phase).collect();
-        let mut absolute = self.heterodyne_u.unwrap(&phase_maps, Some(&mask))?;
-        for (i, s) in absolute.status.data.iter_mut().enumerate() {
-            let b = wrapped
-                .iter()
-                .map(|w| w.modulation.data[i])
-                .fold(f32::INFINITY, f32::min);
-            if *s != PixelStatus::Masked && b < self.min_reliable_modulation {
-                *s = PixelStatus::Unreliable;
-            }
-        }
-        times.unwrap_s = t.elapsed().as_secs_f64();
-
-        let t = Instant::now();
-        let mut pixels = vec![EMPTY; width * height];
-        pixels.par_iter_mut().enumerate().for_each(|(i, out)| {
-            out.background = wrapped[0].background.data[i];
-            out.modulation = wrapped
-                .iter()
-                .map(|w| w.modulation.data[i])
-                .fold(f32::INFINITY, f32::min);
-            match absolute.status.data[i] {
-                PixelStatus::Valid => {
-                    let b0 = wrapped[0].modulation.data[i];
-                    self.triangulate(i, absolute.phase.data[i], None, b0, out)
-                }
-                s => out.status = s,
-            }
-        });
-        times.triangulate_s = t.elapsed().as_secs_f64();
-
-        let t = Instant::now();
-        let pixels = Raster {
-            width,
-            height,
-            data: pixels,
-        };
-        let cloud = self.cloud(&pixels);
-        times.cloud_s = t.elapsed().as_secs_f64();
-        Ok((Reconstruction { pixels, cloud }, times))
+        self.cloud_into(&out.pixels, &counts, &mut out.cloud);
+        Ok(())
     }
 
-    /// Compacts valid pixels into a cloud (see [`cloud::compact`]).
-    fn cloud(&self, pixels: &Raster<PixelResult>) -> PointCloud {
+    /// Compacts valid pixels into a cloud (see [`cloud::compact_into`]).
+    fn cloud_into(
+        &self,
+        pixels: &Raster<PixelResult>,
+        valid_per_row: &[usize],
+        cloud: &mut PointCloud,
+    ) {
         let c = self.triangulator.camera().centre_m();
-        cloud::compact(
-            pixels,
-            self.config.normals,
-            [c.x as f32, c.y as f32, c.z as f32],
-        )
+        let view = [c.x as f32, c.y as f32, c.z as f32];
+        cloud::compact_into(pixels, valid_per_row, self.config.normals, view, cloud);
+    }
+}
+
+impl Default for Reconstruction {
+    /// An empty result (0 x 0 pixels, no points) for [`Reconstructor::reconstruct_into`].
+    fn default() -> Self {
+        Self {
+            pixels: Raster {
+                width: 0,
+                height: 0,
+                data: Vec::new(),
+            },
+            cloud: PointCloud::default(),
+        }
     }
 }
 
@@ -608,6 +476,15 @@ mod tests {
         assert!(fused.cloud.len() > 500, "{}", fused.cloud.len());
         assert_eq!(fused.cloud, staged.cloud);
         assert_eq!(fused.status(), staged.status());
+        // Reusing the buffers of another capture's result gives the same result.
+        let other = synth::render_fringe_set(&truth, &[9.0, 10.0, 11.0], 4, true, &light, 8);
+        let other: Vec<&Raster<f32>> = other.iter().collect();
+        let mut reused = rec.reconstruct(&other, None).unwrap();
+        assert_ne!(reused.cloud, fused.cloud);
+        rec.reconstruct_into(&refs, None, &mut reused).unwrap();
+        assert_eq!(reused.cloud, fused.cloud);
+        assert_eq!(reused.pixels.data.len(), fused.pixels.data.len());
+        assert_eq!(reused.status(), fused.status());
 
         assert!(matches!(
             rec.reconstruct(&refs[..11], None),
@@ -627,5 +504,71 @@ mod tests {
             rec.reconstruct(&wrong, None),
             Err(ReconstructError::CameraSize { .. })
         ));
+    }
+
+    #[test]
+    fn integer_frames_give_the_float_result() {
+        let (camera, projector) = small_rig();
+        let truth = synth::trace(&synth::two_spheres(0.5, 0.6), &camera, &projector);
+        let light = synth::Lighting {
+            ambient: 0.1,
+            gain: 0.7,
+            noise_sigma: 0.005,
+        };
+        let periods = vec![9.0, 10.0, 11.0];
+        let frames = synth::render_fringe_set(&truth, &periods, 4, true, &light, 7);
+        let refs: Vec<&Raster<f32>> = frames.iter().collect();
+        let config = ReconstructConfig::new(periods);
+        let rec = Reconstructor::new(&camera, &projector, config.clone()).unwrap();
+        let want = rec.reconstruct(&refs, None).unwrap();
+        // 12-bit samples in u16 words, and 8-bit ones, quantised from the same frames.
+        let quantise = |scale: f32| -> Vec<Raster<u16>> {
+            frames
+                .iter()
+                .map(|f| Raster {
+                    width: f.width,
+                    height: f.height,
+                    data: f.data.iter().map(|&v| (v * scale + 0.5) as u16).collect(),
+                })
+                .collect()
+        };
+        let q12 = quantise(4095.0);
+        let mut c12 = config.clone();
+        c12.full_scale = Some(4095.0);
+        let rec12 = Reconstructor::new(&camera, &projector, c12).unwrap();
+        let r12: Vec<&Raster<u16>> = q12.iter().collect();
+        let got = rec12.reconstruct(&r12, None).unwrap();
+        let (staged, _) = rec12.reconstruct_staged(&r12).unwrap();
+        assert_eq!(got.cloud, staged.cloud);
+        let q8: Vec<Raster<u8>> = quantise(255.0)
+            .into_iter()
+            .map(|f| Raster {
+                width: f.width,
+                height: f.height,
+                data: f.data.iter().map(|&v| v as u8).collect(),
+            })
+            .collect();
+        let r8: Vec<&Raster<u8>> = q8.iter().collect();
+        let got8 = rec.reconstruct(&r8, None).unwrap();
+        for (out, tol_m) in [(&got, 2e-4f32), (&got8, 3e-3)] {
+            let mut compared = 0;
+            for (a, b) in out.pixels.data.iter().zip(&want.pixels.data) {
+                if a.status == PixelStatus::Valid && b.status == PixelStatus::Valid {
+                    assert!(
+                        (a.depth_m - b.depth_m).abs() < tol_m,
+                        "{} vs {}",
+                        a.depth_m,
+                        b.depth_m
+                    );
+                    assert!((a.background - b.background).abs() < 3e-3);
+                    compared += 1;
+                }
+            }
+            assert!(
+                compared * 100 > want.cloud.len() * 98,
+                "{compared} of {}",
+                want.cloud.len()
+            );
+        }
     }
 }

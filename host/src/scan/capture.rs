@@ -10,11 +10,13 @@
 //!   which the 4-step decoder returns exactly), so the unchanged
 //!   reconstruction runs on them.
 //! - simultaneous: one run, both heads show identical 4-step sequences at
-//!   once; pixels lit by both projectors are aliased (see `mod.rs`).
+//!   once, then three flat fields (both dark, A alone full on, B alone
+//!   full on); pixels the flat fields show lit by both projectors are
+//!   aliased and masked out ([`super::aliasing`]).
 
-use hil_sim::twin::TwinRig;
 use protocol::HeadSet;
 
+use super::aliasing::{lighting, unusable_mask, AliasParams, FlatFields};
 use super::{plan, twin_truth, Mode, Progress, ScanConfig, ScanError};
 use crate::demultiplex::{phase_shift_rad, Demultiplexer, DemuxError, TemporalBins};
 use crate::raster::Raster;
@@ -31,6 +33,8 @@ pub struct Captured {
     /// Phase-noise factor of `frames` relative to raw `steps`-step frames
     /// (demultiplexed 8 samples into 4 equivalent frames: sqrt(4/8)).
     pub noise_factor: f32,
+    /// Per head: its camera's flat fields (simultaneous mode only).
+    pub flat: Option<Vec<FlatFields>>,
 }
 
 /// Runs the board and cameras for `config.mode`.
@@ -92,6 +96,7 @@ fn sequential<R: Board + Projector + Camera>(
         raw,
         steps: config.steps,
         noise_factor: 1.0,
+        flat: None,
     })
 }
 
@@ -101,34 +106,48 @@ fn simultaneous<R: Board + Projector + Camera>(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Captured, ScanError> {
     let count = config.periods_px.len() * config.steps;
-    let patterns = for_projector(
-        plan::fringe_sequence(config.projector_px, &config.periods_px, config.steps),
-        config,
-    );
+    let fringes = plan::fringe_sequence(config.projector_px, &config.periods_px, config.steps);
     progress(Progress::Stage {
         name: "capture A+B",
         total: 3,
     });
     for h in 0..2 {
-        rig.load_sequence(h, &patterns)?;
+        // After the fringes: both dark, then A alone, then B alone.
+        let mut patterns = fringes.clone();
+        patterns.extend(plan::flat_fields(config.projector_px, h));
+        rig.load_sequence(h, &for_projector(patterns, config))?;
     }
     run(
         rig,
-        &plan::one_pattern_per_exposure(HeadSet::BOTH, count)?,
+        &plan::one_pattern_per_exposure(HeadSet::BOTH, count + plan::FLAT_FIELDS)?,
         "A+B",
     )?;
     progress(Progress::Step);
     let mut raw = Vec::new();
+    let mut frames = Vec::new();
+    let mut flat = Vec::new();
     for h in 0..2 {
-        raw.push(rig.take_frames(h)?);
+        let mut taken = rig.take_frames(h)?;
+        let flats = taken.split_off(count);
+        let [dark, lit_a, lit_b]: [Raster<f32>; 3] =
+            flats
+                .try_into()
+                .map_err(|f: Vec<_>| ScanError::FlatFields {
+                    head: twin_truth::HEAD_NAMES[h],
+                    frames: f.len(),
+                })?;
+        flat.push(FlatFields { dark, lit_a, lit_b });
+        frames.push(taken.clone());
+        raw.push(taken);
         progress(Progress::Step);
     }
     progress(Progress::Done);
     Ok(Captured {
-        frames: raw.clone(),
+        frames,
         raw,
         steps: config.steps,
         noise_factor: 1.0,
+        flat: Some(flat),
     })
 }
 
@@ -178,6 +197,7 @@ fn multiplexed<R: Board + Projector + Camera>(
         frames,
         steps: 4,
         noise_factor: (4.0f32 / n as f32).sqrt(),
+        flat: None,
     })
 }
 
@@ -219,59 +239,47 @@ fn demultiplexed_frames(
 }
 
 /// Simultaneous mode with identical sequences: pixels lit by both
-/// projectors see aliased fringes. With no de-aliaser yet they are masked
-/// out (frames zeroed there, so the reconstruction masks them) using the
-/// twin's TRUE overlap mask, with a loud PLACEHOLDER warning.
-pub fn mask_aliased_overlap(
+/// projectors see aliased fringes, and pixels lit by the other head's
+/// projector alone see fringes of the wrong projector. With no de-aliaser
+/// yet all of them are masked out (frames zeroed there, so the
+/// reconstruction masks them), as the flat fields show them
+/// ([`unusable_mask`]), with a loud warning. Returns each head's measured
+/// aliased overlap (lit by both; empty without flat fields).
+pub fn mask_measured_overlap(
     captured: &mut Captured,
-    twin: &TwinRig,
     warnings: &mut Vec<String>,
-) -> Result<(), ScanError> {
-    for (h, frames) in captured.frames.iter_mut().enumerate() {
-        let renderer = twin.renderer(h)?;
-        let g = renderer.geometry();
-        // Widened by about 1 % of the image width (3 px at 320): defocus
-        // and the other projector's light edge alias the pixels next to
-        // the true overlap too.
-        let radius = (g.width as usize).div_ceil(100);
-        let overlap = &dilate(&g.overlap, g.width as usize, g.height as usize, radius);
-        let masked = overlap.iter().filter(|&&o| o).count();
+) -> Vec<Vec<bool>> {
+    let Some(flat) = &captured.flat else {
+        return Vec::new();
+    };
+    let params = AliasParams::default();
+    let mut overlaps = Vec::new();
+    for (h, (frames, flat)) in captured.frames.iter_mut().zip(flat).enumerate() {
+        let both = lighting(flat, &params).both();
+        let mask = unusable_mask(flat, h, &params);
         let warning = format!(
-            "PLACEHOLDER: simultaneous mode: camera {} has {masked} pixels lit by both projectors \
-             (aliased fringes) or within {radius} px of them; they are MASKED OUT using the twin's truth overlap mask, since the \
-             learned de-aliaser (seed 000) does not exist yet",
-            twin_truth::HEAD_NAMES[h]
+            "simultaneous mode: camera {} has {} pixels that the flat fields show lit by both \
+             projectors (aliased fringes); they and the pixels lit by the other head's projector \
+             alone, {} in all (grown by {} px), are MASKED OUT, since no de-aliaser (seed 000's \
+             learned one) exists yet",
+            twin_truth::HEAD_NAMES[h],
+            both.iter().filter(|&&b| b).count(),
+            mask.iter().filter(|&&m| m).count(),
+            params.grow_px
         );
         tracing::warn!("{warning}");
         warnings.push(warning);
         for f in frames.iter_mut() {
-            for (v, &o) in f.data.iter_mut().zip(overlap) {
-                if o {
+            for (v, &m) in f.data.iter_mut().zip(&mask) {
+                if m {
                     // Zero modulation: the reconstruction masks the pixel.
                     *v = 0.0;
                 }
             }
         }
+        overlaps.push(both);
     }
-    Ok(())
-}
-
-/// `mask` grown by `radius` pixels (square neighbourhood).
-fn dilate(mask: &[bool], width: usize, height: usize, radius: usize) -> Vec<bool> {
-    let mut out = vec![false; mask.len()];
-    for y in 0..height {
-        for x in 0..width {
-            if !mask[y * width + x] {
-                continue;
-            }
-            for yy in y.saturating_sub(radius)..(y + radius + 1).min(height) {
-                for xx in x.saturating_sub(radius)..(x + radius + 1).min(width) {
-                    out[yy * width + xx] = true;
-                }
-            }
-        }
-    }
-    out
+    overlaps
 }
 
 #[cfg(test)]

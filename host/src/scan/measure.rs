@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Vector3};
 use super::clouds::{points_f64, transformed};
 use super::metrics::{self, Sample};
 use super::truth_frame::fit_frame;
-use super::{twin_truth, FusedTruth, HeadTruth, ScanError};
+use super::{aliasing, twin_truth, FusedTruth, HeadTruth, ScanError};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::Reconstruction;
@@ -50,11 +50,14 @@ pub struct Measured {
 /// A's calibrated frame), where `a_from_b_used` is the B->A pose fusion
 /// used. Every cloud is measured after a rigid fit of its calibrated frame
 /// onto the true one ([`super::truth_frame`]); fit problems go to `warnings`.
+/// `aliased_masks` are the overlaps the flat fields measured per head
+/// (simultaneous mode; else empty), compared with the truth's.
 pub fn measure(
     truth: &GroundTruth,
     recons: &[Reconstruction],
     fused: &PointCloud,
     a_from_b_used: &Isometry3<f64>,
+    aliased_masks: &[Vec<bool>],
     warnings: &mut Vec<String>,
 ) -> Result<Measured, ScanError> {
     let twin = &truth.twin;
@@ -108,6 +111,9 @@ pub fn measure(
             accuracy,
             overlap,
             frame_fit,
+            aliased_mask: aliased_masks
+                .get(h)
+                .map(|m| aliasing::agreement(m, &g.overlap)),
         });
     }
     let true_a_from_b = twin_truth::b_from_a(twin.rig()).inverse();

@@ -19,6 +19,7 @@
 //! memory; [`output::write_scan`] writes it (every file via a temporary and
 //! a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
 
+pub mod aliasing;
 pub mod calibration_source;
 pub mod capture;
 mod clouds;
@@ -174,10 +175,15 @@ pub enum ScanError {
         /// Heads in the calibration.
         heads: usize,
     },
-    /// Simultaneous mode masks the aliased overlap with the twin's truth
-    /// overlap mask; without a twin (hardware) there is none.
-    #[error("PLACEHOLDER: simultaneous mode needs the digital twin's overlap mask to mask aliased pixels (no de-aliaser yet); on hardware use sequential or simultaneous-multiplexed")]
-    NoAliasMask,
+    /// A camera delivered another number of flat-field frames than the
+    /// plan's three.
+    #[error("head {head}: {frames} flat-field frames, expected 3")]
+    FlatFields {
+        /// Head name.
+        head: &'static str,
+        /// Frames found after the fringes.
+        frames: usize,
+    },
     /// Demultiplexing a camera's frames failed.
     #[error("demultiplex head {head}")]
     Demultiplex {
@@ -275,6 +281,9 @@ pub struct HeadTruth {
     /// Per-pixel accuracy on the overlap: pixels whose surface point both
     /// projectors light (the twin's truth), where the modes differ.
     pub overlap: metrics::MaskedAccuracy,
+    /// Simultaneous mode: the overlap the flat fields measured against the
+    /// twin's true overlap (`None` in the other modes).
+    pub aliased_mask: Option<aliasing::MaskAgreement>,
     /// Point-to-plane RMSE against the true surface, metres (the head's
     /// cloud moved into head A's frame by the TRUE pose: the head alone).
     pub plane_rmse_m: f64,
@@ -428,9 +437,9 @@ pub fn run_sim(
 /// Runs a dual-head scan on any rig: capture -> reconstruct (with
 /// `calibration`, described for the report by `calibration_source`) ->
 /// fuse, and, when a ground `truth` exists (the twin), measure against it.
-/// Without one (hardware) the report's truth figures are null, and
-/// simultaneous mode is refused: its aliased-overlap mask comes from the
-/// twin.
+/// Without one (hardware) the report's truth figures are null.
+/// Simultaneous mode measures its aliased overlap from flat fields, so it
+/// runs on hardware too.
 pub fn run_on_rig<R: Board + Projector + Camera>(
     rig: &mut R,
     calibration: &RigCalibration,
@@ -445,15 +454,10 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             heads: calibration.heads.len(),
         });
     };
-    if config.mode == Mode::Simultaneous && truth.is_none() {
-        return Err(ScanError::NoAliasMask);
-    }
     let mut captured = capture::capture(rig, config, progress)?;
     clock.lap("capture");
     let mut warnings = Vec::new();
-    if let (Mode::Simultaneous, Some(truth)) = (config.mode, truth) {
-        capture::mask_aliased_overlap(&mut captured, &truth.twin, &mut warnings)?;
-    }
+    let aliased_masks = capture::mask_measured_overlap(&mut captured, &mut warnings);
 
     // Reconstruct each head in its own frame.
     let mut recons = Vec::new();
@@ -514,7 +518,14 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
                 name: "measure",
                 total: 1,
             });
-            let m = measure::measure(truth, &recons, &fused_cloud, &a_from_b_used, &mut warnings)?;
+            let m = measure::measure(
+                truth,
+                &recons,
+                &fused_cloud,
+                &a_from_b_used,
+                &aliased_masks,
+                &mut warnings,
+            )?;
             progress(Progress::Step);
             progress(Progress::Done);
             clock.lap("measure");

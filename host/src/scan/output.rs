@@ -9,8 +9,8 @@ use crate::io::images::save_rgb_png;
 use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
-    write_report, FrameFitReport, FrameOffset, FusedReport, HeadReport, IcpReport, ReportError,
-    ScanReport,
+    write_report, AliasedMaskReport, FrameFitReport, FrameOffset, FusedReport, HeadReport,
+    IcpReport, ReportError, ScanReport,
 };
 use crate::raster::Raster;
 
@@ -139,6 +139,12 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                     overlap_pixels: t.map(|t| t.overlap.pixels),
                     overlap_points: t.map(|t| t.overlap.points),
                     overlap_rmse_um: t.map(|t| t.overlap.rmse_m * um),
+                    aliased_mask: t.and_then(|t| t.aliased_mask).map(|a| AliasedMaskReport {
+                        measured_overlap_pixels: a.measured,
+                        true_overlap_pixels: a.truth,
+                        iou: a.iou,
+                        recall: a.recall,
+                    }),
                 }
             })
             .collect(),

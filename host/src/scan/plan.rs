@@ -54,6 +54,19 @@ pub fn shifted_fringes(
     frames
 }
 
+/// Flat-field exposures after the simultaneous mode's fringes.
+pub const FLAT_FIELDS: usize = 3;
+
+/// Projector `projector`'s flat-field frames, in exposure order: both
+/// projectors dark, projector A (0) alone full on, projector B (1) alone
+/// full on.
+pub fn flat_fields(dmd_px: (u32, u32), projector: usize) -> Vec<Raster<f32>> {
+    let (w, h) = (dmd_px.0 as usize, dmd_px.1 as usize);
+    (0..FLAT_FIELDS)
+        .map(|k| Raster::filled(w, h, if k == projector + 1 { 1.0 } else { 0.0 }))
+        .collect()
+}
+
 /// Patterns pre-distorted for a projector whose intensity is g^gamma for
 /// a displayed grey g (the standard remedy for a video-input projector's
 /// response): each level becomes g^(1/gamma), re-quantised to 8 bits, so
@@ -148,6 +161,14 @@ mod tests {
                 .expect("valid");
         }
         assert!(one_pattern_per_exposure(HeadSet::A, MAX_EXPOSURES + 1).is_err());
+    }
+
+    #[test]
+    fn flat_fields_light_one_projector_at_a_time() {
+        let level =
+            |p: usize| -> Vec<f32> { flat_fields((4, 2), p).iter().map(|r| r.data[0]).collect() };
+        assert_eq!(level(0), [0.0, 1.0, 0.0]);
+        assert_eq!(level(1), [0.0, 0.0, 1.0]);
     }
 
     #[test]

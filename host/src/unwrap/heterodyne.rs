@@ -173,6 +173,67 @@ impl Heterodyne {
         Some(absolute)
     }
 
+    /// [`Heterodyne::unwrap_pixel`] for a run of pixels: `wrapped[p * len + x]` is the
+    /// wrapped phase of period p at pixel x (`len = absolute.len()`); `absolute[x]` gets
+    /// the same value as `unwrap_pixel`, NaN where it gives `None`.
+    ///
+    /// Same operations in the same order as `unwrap_pixel`, but branch-free over tiles of
+    /// pixels with the level loops outside, so the pixel loops vectorise.
+    ///
+    /// # Panics
+    /// If `wrapped.len()` is not `periods x absolute.len()` (a caller bug, not bad data).
+    pub fn unwrap_row(&self, wrapped: &[f32], absolute: &mut [f32]) {
+        const TILE: usize = 64;
+        let k = self.periods_px.len();
+        let len = absolute.len();
+        assert_eq!(wrapped.len(), k * len, "one wrapped row per period");
+        let tau = std::f32::consts::TAU;
+        let max_residual = self.max_residual_rad;
+        let mut x0 = 0;
+        while x0 < len {
+            let n = TILE.min(len - x0);
+            let mut level = [[0.0f32; TILE]; MAX_PERIODS];
+            let mut chain = [[0.0f32; TILE]; MAX_PERIODS];
+            for p in 0..k {
+                level[p][..n].copy_from_slice(&wrapped[p * len + x0..p * len + x0 + n]);
+            }
+            chain[0] = level[0];
+            for (l, slot) in chain.iter_mut().enumerate().take(k).skip(1) {
+                for j in 0..k - l {
+                    let (lo, hi) = level.split_at_mut(j + 1);
+                    let (a, b) = (&mut lo[j][..n], &hi[0][..n]);
+                    for x in 0..n {
+                        a[x] = wrap_difference(a[x] - b[x]);
+                    }
+                }
+                *slot = level[0];
+            }
+            let mut abs = [0.0f32; TILE];
+            let mut ok = [true; TILE];
+            let top = &chain[k - 1];
+            for x in 0..n {
+                abs[x] = top[x] + tau * super::ceil_fast((self.top_floor_rad - top[x]) / tau);
+            }
+            for l in (0..k - 1).rev() {
+                let ratio = self.ratios[l];
+                let c = &chain[l];
+                for x in 0..n {
+                    // `fringe_order` without the early return.
+                    let estimate = abs[x] * ratio;
+                    let turns = (estimate - c[x]) * (1.0 / tau);
+                    let order = super::round_fast(turns);
+                    let residual = (turns - order) * tau;
+                    ok[x] &= residual.abs() <= max_residual;
+                    abs[x] = c[x] + tau * order;
+                }
+            }
+            for x in 0..n {
+                absolute[x0 + x] = if ok[x] { abs[x] } else { f32::NAN };
+            }
+            x0 += n;
+        }
+    }
+
     /// Unwraps whole maps (same order as the periods). Pixels outside `mask` are
     /// [`PixelStatus::Masked`].
     pub fn unwrap(
@@ -333,5 +394,63 @@ mod tests {
         assert_eq!(out.count(PixelStatus::Masked), 2);
         assert_eq!(out.count(PixelStatus::Valid), 398);
         assert!((out.projector_coordinate(150, 1).unwrap() - 150.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn row_kernel_matches_pixel_kernel() {
+        let periods = [100.0, 110.0, 120.0];
+        let h = Heterodyne::new(&periods, 1920.0, FRAC_PI_2 as f64).unwrap();
+        let len = 3000;
+        // A ramp over the field plus a deterministic disturbance on some pixels so that
+        // both accepted and refused pixels (and NaN input) are compared.
+        let mut wrapped = vec![0.0f32; 3 * len];
+        for x in 0..len {
+            let u = x as f64 * 0.64;
+            for (p, w) in wrapped_at(&periods, u).into_iter().enumerate() {
+                let kick = if x % 7 == 3 { 1.3 * p as f32 } else { 0.0 };
+                wrapped[p * len + x] = wrap_pi(w + kick);
+            }
+        }
+        wrapped[5] = f32::NAN;
+        let mut row = vec![0.0f32; len];
+        h.unwrap_row(&wrapped, &mut row);
+        let mut refused = 0;
+        for x in 0..len {
+            let w: Vec<f32> = (0..3).map(|p| wrapped[p * len + x]).collect();
+            match h.unwrap_pixel(&w) {
+                Some(v) => assert_eq!(v.to_bits(), row[x].to_bits(), "x={x}"),
+                None => {
+                    assert!(row[x].is_nan(), "x={x}");
+                    refused += 1;
+                }
+            }
+        }
+        assert!(refused > 100 && refused < len / 2, "{refused}");
+    }
+
+    mod proptests {
+        use super::super::*;
+        use proptest::prelude::*;
+
+        proptest! {
+            #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+            #[test]
+            fn row_kernel_is_the_pixel_kernel(
+                k in 2usize..5,
+                phases in proptest::collection::vec(-3.2f32..3.2, 4 * 70),
+            ) {
+                let periods = [20.0, 22.0, 24.5, 27.0];
+                let h = Heterodyne::new(&periods[..k], 150.0, 1.2).unwrap();
+                let len = 70;
+                let wrapped = &phases[..k * len];
+                let mut row = vec![0.0f32; len];
+                h.unwrap_row(wrapped, &mut row);
+                for x in 0..len {
+                    let w: Vec<f32> = (0..k).map(|p| wrapped[p * len + x]).collect();
+                    let want = h.unwrap_pixel(&w).unwrap_or(f32::NAN);
+                    prop_assert_eq!(want.to_bits(), row[x].to_bits());
+                }
+            }
+        }
     }
 }

@@ -111,15 +111,16 @@ Projectors: PLACEHOLDER, no DMD driver. Each head's pattern set is written as PA
 for the DMD vendor's GUI to load (one pattern per trigger, in file order); with --patterns-preloaded the set is
 not written but checked against what the scan needs.
 
-No ground truth on hardware: report.json's rmse and coverage figures are null. Simultaneous mode needs the
-digital twin's overlap mask and is refused on hardware.";
+No ground truth on hardware: report.json's rmse and coverage figures are null. Simultaneous mode measures
+which pixels both projectors light from three flat-field exposures it adds after the fringes (both dark,
+A alone full on, B alone full on) and masks them out.";
 
 /// `--mode` values.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 enum ModeArg {
     /// Head A alone, then head B alone.
     Sequential,
-    /// Both heads at once, identical sequences; aliased overlap masked out (PLACEHOLDER for a de-aliaser).
+    /// Both heads at once, identical sequences; pixels the flat fields show lit by the other projector masked out (no de-aliaser yet).
     Simultaneous,
     /// Both at once, N = 8, head A on temporal bin 1, head B on bin 2, demultiplexed per pixel.
     SimultaneousMultiplexed,
@@ -235,6 +236,9 @@ fn scan_hardware(
     );
     let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
     let source = format!("rig file {}", calibration_path.display());
+    // As scan_to_dir does for --sim: a failed scan must not leave an
+    // earlier run's scan.ply or report.json to be read as its result.
+    scan::output::remove_stale(&args.out)?;
     let result = scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?;
     Ok(scan::output::write_scan(&args.out, &result)?)
 }
@@ -298,6 +302,12 @@ fn print_summary(report: &ScanReport) {
                 "head {} overlap (pixels lit by both projectors): {points} of {pixels} pixels reconstructed, RMSE {} um",
                 h.name,
                 f1(h.overlap_rmse_um)
+            );
+        }
+        if let Some(m) = &h.aliased_mask {
+            println!(
+                "head {} overlap measured by flat fields: {} px lit by both projectors, true overlap {} px, IoU {:.4}, recall {:.4}",
+                h.name, m.measured_overlap_pixels, m.true_overlap_pixels, m.iou, m.recall
             );
         }
     }

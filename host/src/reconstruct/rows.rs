@@ -1,0 +1,220 @@
+//! The per-row stages of the pipeline, each a loop over a whole row so that it
+//! vectorises: decode (phase, modulation, background per period), unwrap (heterodyne),
+//! finish (ray/plane triangulation, status, noise, organised output).
+//!
+//! [`super::Reconstructor::reconstruct`] runs all three per row while the row is in
+//! cache; [`super::Reconstructor::reconstruct_staged`] runs each over the whole image
+//! for the bench's breakdown. Both call these functions, so they agree bit for bit.
+
+use super::{PixelResult, Reconstructor};
+use crate::phase::Sample;
+use crate::triangulation::ColumnHits;
+use crate::unwrap::heterodyne::Heterodyne;
+use crate::unwrap::PixelStatus;
+
+/// One direction of one row, decoded: `phase[p * width + x]` per period p.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Decoded {
+    pub phase: Vec<f32>,
+    pub modulation: Vec<f32>,
+    /// Background A of the finest period.
+    pub background: Vec<f32>,
+    /// Smallest modulation over the periods.
+    pub min_modulation: Vec<f32>,
+    /// Absolute phase of the finest period (NaN where the heterodyne refused).
+    pub absolute: Vec<f32>,
+}
+
+/// Per-task buffers of the fused pass (allocated once per rayon job, not per row).
+#[derive(Default)]
+pub(super) struct Scratch {
+    pub u: Decoded,
+    pub v: Decoded,
+    column: Vec<f32>,
+    hits: ColumnHits,
+}
+
+impl Reconstructor {
+    /// Decodes one direction of one row (`rows[p * N + n]` is frame n of period p),
+    /// samples scaled by `scale` into `[0, 1]` units.
+    pub(super) fn decode_row<T: Sample>(&self, rows: &[&[T]], scale: f32, out: &mut Decoded) {
+        let n = self.config.steps;
+        let k = self.config.periods_px.len();
+        let width = rows[0].len();
+        out.phase.resize(k * width, 0.0);
+        out.modulation.resize(k * width, 0.0);
+        out.background.resize(width, 0.0);
+        out.min_modulation.resize(width, 0.0);
+        // Periods after the first write their background into `absolute` (overwritten
+        // by the unwrap stage): only the finest period's is kept.
+        out.absolute.resize(width, 0.0);
+        for p in 0..k {
+            let bg = if p == 0 {
+                &mut out.background
+            } else {
+                &mut out.absolute
+            };
+            self.shift.decode_row_scaled(
+                &rows[p * n..(p + 1) * n],
+                scale,
+                &mut out.phase[p * width..(p + 1) * width],
+                &mut out.modulation[p * width..(p + 1) * width],
+                bg,
+            );
+        }
+        out.min_modulation.fill(f32::INFINITY);
+        for m in out.modulation.chunks_exact(width) {
+            for (b, &m) in out.min_modulation.iter_mut().zip(m) {
+                *b = b.min(m);
+            }
+        }
+    }
+
+    /// Heterodyne over one decoded row: fills `dec.absolute`.
+    pub(super) fn unwrap_row(heterodyne: &Heterodyne, dec: &mut Decoded) {
+        heterodyne.unwrap_row(&dec.phase, &mut dec.absolute);
+    }
+
+    /// Absolute phase of one direction at a pixel, or why not (mask, order noise,
+    /// heterodyne residual).
+    #[inline]
+    fn direction_phase(&self, dec: &Decoded, x: usize) -> Result<f32, PixelStatus> {
+        let b = dec.min_modulation[x];
+        // Written so that a NaN modulation (corrupt samples) is masked too.
+        let usable = b >= self.config.min_modulation;
+        if !usable {
+            Err(PixelStatus::Masked)
+        } else if b < self.min_reliable_modulation || dec.absolute[x].is_nan() {
+            Err(PixelStatus::Unreliable)
+        } else {
+            Ok(dec.absolute[x])
+        }
+    }
+
+    /// Triangulates one unwrapped row (`first_index` = index of its first pixel) into the
+    /// organised output; returns the number of valid pixels.
+    pub(super) fn finish_row(
+        &self,
+        first_index: usize,
+        u: &Decoded,
+        v: Option<&Decoded>,
+        scratch_column: &mut Vec<f32>,
+        hits: &mut ColumnHits,
+        out: &mut [PixelResult],
+    ) -> usize {
+        if let Some(v) = v {
+            return self.finish_row_two_rays(first_index, u, v, out);
+        }
+        let width = out.len();
+        let p0 = self.config.periods_px[0] as f32;
+        let tau = std::f32::consts::TAU;
+        let extent = self.triangulator.projector().width_px as f32 - 0.5;
+        // Projector column per pixel; NaN where there is nothing to triangulate.
+        scratch_column.clear();
+        scratch_column.extend((0..width).map(|x| {
+            let c = u.absolute[x] * p0 / tau;
+            let usable = u.min_modulation[x] >= self.min_reliable_modulation
+                && u.min_modulation[x] >= self.config.min_modulation;
+            if usable && c >= -0.5 && c <= extent {
+                c
+            } else {
+                f32::NAN
+            }
+        }));
+        self.triangulator
+            .intersect_columns(first_index, scratch_column, hits);
+        // CRB phase noise of the finest period -> projector pixels, times metres per pixel.
+        let sigma_px_times_b = self.noise_times_crb * p0 / tau;
+        let mut valid = 0;
+        for (x, o) in out.iter_mut().enumerate() {
+            let mut r = PixelResult {
+                phase_u: f32::NAN,
+                status: PixelStatus::Masked,
+                point_m: [f32::NAN; 3],
+                depth_m: f32::NAN,
+                sigma_m: f32::NAN,
+                modulation: u.min_modulation[x],
+                background: u.background[x],
+            };
+            match self.direction_phase(u, x) {
+                Err(s) => r.status = s,
+                Ok(phase) => {
+                    r.phase_u = phase;
+                    r.status = PixelStatus::Unreliable;
+                    if !hits.depth_m[x].is_nan() {
+                        r.point_m = [hits.point_m[0][x], hits.point_m[1][x], hits.point_m[2][x]];
+                        r.depth_m = hits.depth_m[x];
+                        let b0 = u.modulation[x];
+                        r.sigma_m = hits.range_per_px[x] * (sigma_px_times_b / b0);
+                        r.status = PixelStatus::Valid;
+                        valid += 1;
+                    }
+                }
+            }
+            *o = r;
+        }
+        valid
+    }
+
+    /// [`Reconstructor::finish_row`] with both directions: ray / ray, pixel by pixel.
+    fn finish_row_two_rays(
+        &self,
+        first_index: usize,
+        u: &Decoded,
+        v: &Decoded,
+        out: &mut [PixelResult],
+    ) -> usize {
+        let mut valid = 0;
+        for (x, o) in out.iter_mut().enumerate() {
+            let mut r = PixelResult {
+                phase_u: f32::NAN,
+                status: PixelStatus::Masked,
+                point_m: [f32::NAN; 3],
+                depth_m: f32::NAN,
+                sigma_m: f32::NAN,
+                modulation: u.min_modulation[x].min(v.min_modulation[x]),
+                background: u.background[x],
+            };
+            match (self.direction_phase(u, x), self.direction_phase(v, x)) {
+                (Ok(pu), Ok(pv)) => {
+                    self.triangulate_two_rays(first_index + x, pu, pv, u.modulation[x], &mut r)
+                }
+                (Err(s), _) | (_, Err(s)) => r.status = s,
+            }
+            valid += usize::from(r.status == PixelStatus::Valid);
+            *o = r;
+        }
+        valid
+    }
+
+    /// All three stages for one row of the fused pass.
+    pub(super) fn fused_row<T: Sample>(
+        &self,
+        y: usize,
+        frames_u: &[&crate::raster::Raster<T>],
+        frames_v: Option<&[&crate::raster::Raster<T>]>,
+        scale: f32,
+        scratch: &mut Scratch,
+        out: &mut [PixelResult],
+    ) -> usize {
+        let width = out.len();
+        let span = y * width..(y + 1) * width;
+        let rows: Vec<&[T]> = frames_u.iter().map(|f| &f.data[span.clone()]).collect();
+        self.decode_row(&rows, scale, &mut scratch.u);
+        Self::unwrap_row(&self.heterodyne_u, &mut scratch.u);
+        if let Some(fv) = frames_v {
+            let rows: Vec<&[T]> = fv.iter().map(|f| &f.data[span.clone()]).collect();
+            self.decode_row(&rows, scale, &mut scratch.v);
+            Self::unwrap_row(&self.heterodyne_v, &mut scratch.v);
+        }
+        let v = frames_v.map(|_| &scratch.v);
+        self.finish_row(
+            y * width,
+            &scratch.u,
+            v,
+            &mut scratch.column,
+            &mut scratch.hits,
+            out,
+        )
+    }
+}
