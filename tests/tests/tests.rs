@@ -2,6 +2,7 @@
 //! Each module says what it covers.
 
 mod dual_head;
+mod estimated_calibration;
 mod faults;
 mod firmware_parity;
 mod scan_overlap;

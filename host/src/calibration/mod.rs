@@ -25,7 +25,9 @@ pub mod rig_file;
 pub mod rodrigues;
 pub mod sim_head;
 pub mod synthetic;
+pub mod truth_error;
 pub mod twin_head;
+pub mod twin_scene;
 pub mod zhang;
 
 pub use pinhole::{CameraModel, Distortion, Intrinsics, PinholeModel, Pose, ProjectorModel, Ray};

@@ -88,6 +88,24 @@ pub struct FusedReport {
     pub pose_error_vs_truth_um: Option<f64>,
 }
 
+/// Size of a rigid fit.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct FrameOffset {
+    /// Rotation, degrees.
+    pub rotation_deg: f64,
+    /// Translation, micrometres.
+    pub translation_um: f64,
+}
+
+/// The frame fits of the heads and of the fused cloud.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct FrameFitReport {
+    /// Per head: its calibrated camera frame onto the true camera frame.
+    pub heads: Vec<FrameOffset>,
+    /// The fused cloud's frame (head A's calibrated frame) onto head A's true frame.
+    pub fused: FrameOffset,
+}
+
 /// Everything `report.json` holds.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct ScanReport {
@@ -103,8 +121,14 @@ pub struct ScanReport {
     pub periods_px: Vec<f64>,
     /// Phase steps.
     pub steps: usize,
-    /// Where the calibration came from (the twin's truth in simulation).
+    /// Where the calibration came from: a rig file's path, or the twin's truth.
     pub calibration: String,
+    /// An estimated calibration's error against the twin's truth (null with
+    /// the truth itself, and on hardware).
+    pub calibration_vs_truth: Option<crate::calibration::truth_error::RigTruthError>,
+    /// Rigid fit of each cloud's calibrated frame onto the truth, applied
+    /// before measuring (`slscan::scan::truth_frame`); null without a truth.
+    pub truth_frame_fit: Option<FrameFitReport>,
     /// How truth figures are defined.
     pub truth_note: String,
     /// Samples of the measurable object surface (coverage denominator).
@@ -177,6 +201,8 @@ mod tests {
             periods_px: vec![1.0],
             steps: 4,
             calibration: "truth".into(),
+            calibration_vs_truth: None,
+            truth_frame_fit: None,
             truth_note: String::new(),
             surface_samples: None,
             heads: vec![head],

@@ -9,6 +9,7 @@ use nalgebra::{Isometry3, Vector3};
 
 use super::clouds::{points_f64, transformed};
 use super::metrics::{self, Sample};
+use super::truth_frame::fit_frame;
 use super::{aliasing, twin_truth, FusedTruth, HeadTruth, ScanError};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
@@ -44,36 +45,61 @@ pub struct Measured {
     pub surface_samples: usize,
 }
 
-/// Measures `recons` (each in its head's frame; each head alone, moved into
-/// head A's frame by the TRUE pose) and `fused` (head A's frame), where
-/// `a_from_b_used` is the B->A pose fusion used; `aliased_masks` are the
-/// overlaps the flat fields measured per head (simultaneous mode; else
-/// empty), compared with the truth's.
+/// Measures `recons` (each in its head's calibrated frame; each head alone,
+/// moved into head A's frame through its own frame fit) and `fused` (head
+/// A's calibrated frame), where `a_from_b_used` is the B->A pose fusion
+/// used. Every cloud is measured after a rigid fit of its calibrated frame
+/// onto the true one ([`super::truth_frame`]); fit problems go to `warnings`.
+/// `aliased_masks` are the overlaps the flat fields measured per head
+/// (simultaneous mode; else empty), compared with the truth's.
 pub fn measure(
     truth: &GroundTruth,
     recons: &[Reconstruction],
     fused: &PointCloud,
     a_from_b_used: &Isometry3<f64>,
     aliased_masks: &[Vec<bool>],
+    warnings: &mut Vec<String>,
 ) -> Result<Measured, ScanError> {
     let twin = &truth.twin;
-    let a_from_world = twin_truth::head_from_world(twin.rig(), 0);
-    let mut surface: Vec<Sample> = Vec::new();
-    let mut all_surface: Vec<Sample> = Vec::new();
     let geometries: Vec<_> = (0..recons.len())
         .map(|h| twin.renderer(h))
         .collect::<Result<_, _>>()?;
+    let any_pixel =
+        |g: &CameraGeometry| -> Vec<bool> { g.point_m.iter().map(|p| p[0].is_finite()).collect() };
+    let fused_pts = points_f64(fused);
+    let true_a_from_world = twin_truth::head_from_world(twin.rig(), 0);
+    let truth_in_true_a: Vec<Sample> = geometries
+        .iter()
+        .flat_map(|g| metrics::samples(g.geometry(), &any_pixel(g.geometry()), &true_a_from_world))
+        .collect();
+    let fused_fit = fit_frame(
+        &fused_pts,
+        &truth_in_true_a,
+        &true_a_from_world,
+        "fused cloud",
+        warnings,
+    );
+    let a_from_world = fused_fit.frame_from_world;
+    let mut surface: Vec<Sample> = Vec::new();
+    let mut all_surface: Vec<Sample> = Vec::new();
     for (h, g) in geometries.iter().enumerate() {
         let g = g.geometry();
         let own = metrics::own_object_pixels(g, h, &truth.is_object);
         surface.extend(metrics::samples(g, &own, &a_from_world));
-        let any: Vec<bool> = g.point_m.iter().map(|p| p[0].is_finite()).collect();
-        all_surface.extend(metrics::samples(g, &any, &a_from_world));
+        all_surface.extend(metrics::samples(g, &any_pixel(g), &a_from_world));
     }
     let mut heads = Vec::new();
     for (h, recon) in recons.iter().enumerate() {
         let g = geometries[h].geometry();
-        let head_from_world = twin_truth::head_from_world(twin.rig(), h);
+        let true_head_from_world = twin_truth::head_from_world(twin.rig(), h);
+        let frame_fit = fit_frame(
+            &points_f64(&recon.cloud),
+            &metrics::samples(g, &any_pixel(g), &true_head_from_world),
+            &true_head_from_world,
+            &format!("head {}", twin_truth::HEAD_NAMES[h]),
+            warnings,
+        );
+        let head_from_world = frame_fit.frame_from_world;
         let accuracy = metrics::pixel_accuracy(recon, g, &head_from_world, h, &truth.is_object);
         let overlap = metrics::masked_accuracy(recon, g, &head_from_world, &g.overlap);
         let a_from_head = a_from_world * head_from_world.inverse();
@@ -84,14 +110,18 @@ pub fn measure(
             error_m: error_map(recon, g, &head_from_world),
             accuracy,
             overlap,
+            frame_fit,
             aliased_mask: aliased_masks
                 .get(h)
                 .map(|m| aliasing::agreement(m, &g.overlap)),
         });
     }
-    let fused_pts = points_f64(fused);
     let true_a_from_b = twin_truth::b_from_a(twin.rig()).inverse();
-    let diff = a_from_b_used * true_a_from_b.inverse();
+    // The pose used maps B's calibrated frame into A's; in true frames:
+    let used_in_true_frames = heads[0].frame_fit.true_from_estimate
+        * a_from_b_used
+        * heads[1].frame_fit.true_from_estimate.inverse();
+    let diff = used_in_true_frames * true_a_from_b.inverse();
     Ok(Measured {
         heads,
         fused: FusedTruth {
@@ -101,6 +131,7 @@ pub fn measure(
                 diff.rotation.angle().to_degrees(),
                 diff.translation.vector.norm(),
             ),
+            frame_fit: fused_fit,
         },
         surface_samples: surface.len(),
     })

@@ -1,13 +1,14 @@
 //! A whole scan: plan -> capture -> reconstruct -> fuse -> measure.
 //!
 //! ```text
-//! RigCalibration (sim: the twin's truth; hardware: a rig file)
+//! RigCalibration (a rig file from `calibrate`; sim default: the twin's truth)
 //! per head (sequential mode: head A alone, then head B alone):
 //!   fringe set ──Projector::load_sequence──> DMD table
 //!   plan (one pattern per exposure) ──Board::run_plan──> board-clock timeline
 //!   ──Camera::take_frames──> one frame per trigger ──Reconstructor──> cloud
 //! clouds A, B ──fusion::fuse_heads (ICP from the calibrated B->A)──> fused cloud
-//! every cloud ──metrics (twin ground truth, when there is one)──> RMSE, coverage
+//! every cloud ──truth_frame (rigid fit of its frame)──metrics (twin ground truth,
+//!   when there is one)──> RMSE, coverage
 //! ```
 //!
 //! [`run_on_rig`] does it on any rig ([`crate::rig`]'s traits) with a given
@@ -19,6 +20,7 @@
 //! a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
 
 pub mod aliasing;
+pub mod calibration_source;
 pub mod capture;
 mod clouds;
 mod fuse;
@@ -26,6 +28,7 @@ pub mod measure;
 pub mod metrics;
 pub mod output;
 pub mod plan;
+pub mod truth_frame;
 pub mod twin_truth;
 
 use std::sync::Arc;
@@ -34,10 +37,10 @@ use std::time::Instant;
 use hil_sim::board::SimBoardConfig;
 use hil_sim::twin::scenes::{built_in, Detail};
 use hil_sim::twin::{SensorModel, TwinError, TwinRig};
-use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use nalgebra::Isometry3;
 
 use crate::board::ClientConfig;
-use crate::calibration::{Pose, RigCalibration};
+use crate::calibration::RigCalibration;
 use crate::fusion::{FusionError, IcpResult};
 use crate::patterns::three_pitch_periods_px;
 use crate::point_cloud::PointCloud;
@@ -45,6 +48,7 @@ use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
 use crate::rig::sim::{SimRig, SimRigConfig};
 use crate::rig::{Board, Camera, Projector, RigError};
+pub use calibration_source::{CalibrationSource, UsedCalibration};
 use clouds::{from_fusion, transformed};
 pub use measure::GroundTruth;
 use metrics::PixelAccuracy;
@@ -94,6 +98,8 @@ pub struct ScanConfig {
     /// Projector response the patterns are pre-compensated for (each grey
     /// level g sent as g^(1/gamma)); `None` sends linear patterns.
     pub precompensate_gamma: Option<f64>,
+    /// The calibration a simulated scan reconstructs with (default: the twin's truth).
+    pub calibration: CalibrationSource,
 }
 
 impl ScanConfig {
@@ -117,6 +123,7 @@ impl ScanConfig {
             },
             sim_projector_gamma: 1.0,
             precompensate_gamma: None,
+            calibration: CalibrationSource::TwinTruth,
         }
     }
 }
@@ -185,6 +192,9 @@ pub enum ScanError {
         /// Why.
         source: crate::demultiplex::DemuxError,
     },
+    /// The calibration file is unusable (checked before any capture).
+    #[error("calibration")]
+    Calibration(#[from] calibration_source::CalibrationSourceError),
     /// A pre-compensation gamma that is not a positive finite number.
     #[error("pre-compensation gamma {gamma} is not a positive finite number")]
     BadGamma {
@@ -279,6 +289,8 @@ pub struct HeadTruth {
     pub plane_rmse_m: f64,
     /// Coverage of the measurable object surface.
     pub coverage: f64,
+    /// How the head's calibrated frame was fitted onto the truth before measuring.
+    pub frame_fit: truth_frame::FrameFit,
 }
 
 /// The fused result.
@@ -301,8 +313,11 @@ pub struct FusedTruth {
     /// Coverage of the measurable object surface.
     pub coverage: f64,
     /// Error of the B->A pose used (ICP-refined, or calibrated without ICP)
-    /// against the twin's true B->A: (degrees, metres).
+    /// against the twin's true B->A, both heads' frames fitted onto the
+    /// truth: (degrees, metres).
     pub residual_pose_error: (f64, f64),
+    /// How head A's calibrated frame (the fused frame) was fitted onto the truth.
+    pub frame_fit: truth_frame::FrameFit,
 }
 
 /// A finished scan, in memory.
@@ -312,6 +327,9 @@ pub struct ScanResult {
     pub config: ScanConfig,
     /// Where the calibration came from (for the report).
     pub calibration_source: String,
+    /// An estimated calibration's error against the twin's truth (`None`
+    /// with the truth itself, and on hardware).
+    pub calibration_vs_truth: Option<crate::calibration::truth_error::RigTruthError>,
     /// Heads A and B.
     pub heads: Vec<HeadResult>,
     /// The fused cloud.
@@ -346,10 +364,6 @@ impl Clock {
     }
 }
 
-/// What a calibration says the simulated scan reconstructs with.
-const TWIN_CALIBRATION: &str =
-    "the digital twin's TRUE device models (not an estimated calibration)";
-
 /// Runs a dual-head scan on the simulated rig (board on a pty, twin
 /// cameras), reconstructing with the twin's true calibration and measuring
 /// against the twin's ground truth.
@@ -379,11 +393,14 @@ pub fn run_sim(
             projectors: rig.projectors.len(),
         });
     }
+    // Before anything is captured: a bad rig file ends the scan here.
+    let used = calibration_source::resolve(
+        &config.calibration,
+        &rig,
+        config.camera_px,
+        config.projector_px,
+    )?;
     let twin = Arc::new(TwinRig::new(scene, rig)?);
-    let calibration = twin_truth::twin_calibration(twin.rig(), 2);
-    tracing::warn!(
-        "calibration: the digital twin's TRUE device models, not an estimated calibration"
-    );
     progress(Progress::Stage {
         name: "ray-cast cameras",
         total: 2,
@@ -406,12 +423,13 @@ pub fn run_sim(
     let truth = GroundTruth::new(twin);
     let mut result = run_on_rig(
         &mut sim,
-        &calibration,
-        TWIN_CALIBRATION,
+        &used.rig,
+        &used.description,
         Some(&truth),
         config,
         progress,
     )?;
+    result.calibration_vs_truth = used.vs_truth;
     result.timings_ms.splice(0..0, clock.timings);
     Ok(result)
 }
@@ -477,7 +495,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         name: "fuse",
         total: 1,
     });
-    let a_from_b_calibrated = isometry_from_pose(&a_to_b).inverse();
+    let a_from_b_calibrated = calibration_source::isometry_from_pose(&a_to_b).inverse();
     let fused = fuse::fuse(
         &recons[0].cloud,
         &recons[1].cloud,
@@ -500,7 +518,14 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
                 name: "measure",
                 total: 1,
             });
-            let m = measure::measure(truth, &recons, &fused_cloud, &a_from_b_used, &aliased_masks)?;
+            let m = measure::measure(
+                truth,
+                &recons,
+                &fused_cloud,
+                &a_from_b_used,
+                &aliased_masks,
+                &mut warnings,
+            )?;
             progress(Progress::Step);
             progress(Progress::Done);
             clock.lap("measure");
@@ -538,6 +563,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     Ok(ScanResult {
         config: config.clone(),
         calibration_source: calibration_source.to_string(),
+        calibration_vs_truth: None,
         heads,
         fused: FusedResult {
             cloud: fused_cloud,
@@ -548,11 +574,4 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         timings_ms: clock.timings,
         warnings,
     })
-}
-
-/// A calibration pose as an isometry (the rotation re-orthonormalised
-/// through a quaternion).
-fn isometry_from_pose(pose: &Pose) -> Isometry3<f64> {
-    let rotation = UnitQuaternion::from_matrix(&pose.rotation);
-    Isometry3::from_parts(Translation3::from(pose.translation_m), rotation)
 }

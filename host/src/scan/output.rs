@@ -9,7 +9,8 @@ use crate::io::images::save_rgb_png;
 use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
-    write_report, AliasedMaskReport, FusedReport, HeadReport, IcpReport, ReportError, ScanReport,
+    write_report, AliasedMaskReport, FrameFitReport, FrameOffset, FusedReport, HeadReport,
+    IcpReport, ReportError, ScanReport,
 };
 use crate::raster::Raster;
 
@@ -72,6 +73,21 @@ pub fn remove_stale(dir: &Path) -> Result<(), OutputError> {
     Ok(())
 }
 
+/// The frame fits of the heads and the fused cloud (`None` without a truth).
+fn frame_fits(scan: &ScanResult) -> Option<FrameFitReport> {
+    let offset = |fit: &super::truth_frame::FrameFit| FrameOffset {
+        rotation_deg: fit.rotation_deg(),
+        translation_um: fit.translation_m() * 1e6,
+    };
+    let heads = scan
+        .heads
+        .iter()
+        .map(|h| h.truth.as_ref().map(|t| offset(&t.frame_fit)))
+        .collect::<Option<Vec<_>>>()?;
+    let fused = offset(&scan.fused.truth.as_ref()?.frame_fit);
+    Some(FrameFitReport { heads, fused })
+}
+
 /// The report of a finished scan.
 pub fn report(scan: &ScanResult) -> ScanReport {
     let um = 1e6;
@@ -89,10 +105,14 @@ pub fn report(scan: &ScanResult) -> ScanReport {
         periods_px: c.periods_px.clone(),
         steps: c.steps,
         calibration: scan.calibration_source.clone(),
+        calibration_vs_truth: scan.calibration_vs_truth.clone(),
+        truth_frame_fit: frame_fits(scan),
         truth_note: if scan.surface_samples.is_none() {
             "no ground truth (hardware): rmse, coverage and pose-error figures are null".into()
         } else {
-            "rmse_um per head: each valid pixel's point vs the true point of that pixel; \
+            "every cloud is measured after a rigid fit of its calibrated frame onto the true camera frame \
+            (truth_frame_fit; shape and scale errors stay); \
+            rmse_um per head: each valid pixel's point vs the true point of that pixel; \
             plane_rmse_um and fused.rmse_um: each point vs the tangent plane of its nearest true surface sample; \
             coverage: fraction of the measurable object surface (pixels of either camera seeing the object, \
             all scene objects but the background wall, lit by that camera's own projector) with a cloud point within 1 mm; \

@@ -85,9 +85,21 @@ pub struct Args {
     #[arg(long, default_value_t = hil_sim::twin::CALIBRATION_PIXEL_SAMPLES,
           value_parser = clap::value_parser!(u32).range(1..=16))]
     pixel_samples: u32,
-    /// --sim --two-heads: name of the second head.
+    /// --sim --two-heads / --scene: name of the second head.
     #[arg(long, default_value = "B")]
     head_b: String,
+    /// --sim: calibrate the two heads of this built-in dual-head twin scene (same
+    /// devices and head poses as `scan --sim --scene NAME`), e.g. `large-part`.
+    #[arg(
+        long,
+        value_name = "NAME",
+        requires = "sim",
+        conflicts_with = "two_heads"
+    )]
+    scene: Option<String>,
+    /// --sim --scene: camera image size as WIDTHxHEIGHT (must match the scan's).
+    #[arg(long, value_name = "WxH", value_parser = parse_size, default_value = "640x480")]
+    camera: (u32, u32),
     /// --sim: also write the rendered board images (PNG) and phase maps (.npy) here
     /// (one folder per head with --two-heads).
     #[arg(long, value_name = "DIR")]
@@ -157,13 +169,24 @@ fn run_sim(args: &Args, options: &HeadOptions) -> anyhow::Result<()> {
         Some(n) => bail!("--noise {n} is not a non-negative grey level"),
         None => base.read_noise_e,
     };
-    let mut sim = TwinHead::standard(args.views, &Detail::default());
-    sim.pixel_samples = args.pixel_samples;
     let sensor = SensorModel {
         read_noise_e,
         bits: args.bits,
         ..base
     };
+    if let Some(scene) = &args.scene {
+        let scene_args = super::calibrate_scene::SceneArgs {
+            scene,
+            camera_px: args.camera,
+            views: args.views,
+            names: [&args.head, &args.head_b],
+            pixel_samples: args.pixel_samples,
+            out: &args.out,
+        };
+        return super::calibrate_scene::run(&scene_args, &sensor, options);
+    }
+    let mut sim = TwinHead::standard(args.views, &Detail::default());
+    sim.pixel_samples = args.pixel_samples;
     let bit_depth = if args.bits == 16 {
         BitDepth::Sixteen
     } else {
@@ -381,7 +404,7 @@ fn print_camera_stage(stage: &CameraStage) {
     println!("camera reprojection RMS {:.4} px", stage.calibration.rms_px);
 }
 
-fn print_head(cal: &HeadCalibration) {
+pub(super) fn print_head(cal: &HeadCalibration) {
     print_device("camera", &cal.head.camera);
     print_device("projector", &cal.head.projector);
     let t = cal.head.projector.pose.translation_m * 1e3;
@@ -416,7 +439,7 @@ fn print_head(cal: &HeadCalibration) {
     );
 }
 
-fn print_truth_comparison(truth: &Head, cal: &HeadCalibration) {
+pub(super) fn print_truth_comparison(truth: &Head, cal: &HeadCalibration) {
     let pairs = [
         ("camera", &cal.head.camera, &truth.camera),
         ("projector", &cal.head.projector, &truth.projector),

@@ -14,7 +14,7 @@ use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{FolderProjector, FolderProjectorHead, PatternDelivery};
 use slscan::rig::hardware::HardwareRig;
 use slscan::rig::serial_board::SerialBoard;
-use slscan::scan::{self, default_periods_px, Mode, Progress, ScanConfig};
+use slscan::scan::{self, default_periods_px, CalibrationSource, Mode, Progress, ScanConfig};
 
 /// Options of `slscan scan`.
 #[derive(clap::Args)]
@@ -52,7 +52,10 @@ pub struct Args {
     /// one subfolder per head named as in the calibration (A/, B/).
     #[arg(long)]
     frames_from: Option<PathBuf>,
-    /// Hardware: the rig calibration file (slscan-rig JSON, two heads).
+    /// The rig calibration file (slscan-rig JSON, two heads): required on
+    /// hardware; with --sim, reconstruct with it and seed the ICP from it
+    /// (`slscan calibrate --sim --scene NAME --out FILE`) instead of the
+    /// digital twin's TRUE devices (the default, labelled so in the report).
     #[arg(long)]
     calibration: Option<PathBuf>,
     /// Hardware: where the DMD pattern sets are written (or, with
@@ -139,10 +142,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )
     };
     let report = if args.sim {
-        if args.calibration.is_some() {
-            anyhow::bail!("--calibration is for hardware; --sim reconstructs with the twin's true calibration");
-        }
         let mut config = ScanConfig::new(&args.scene);
+        if let Some(path) = &args.calibration {
+            config.calibration = CalibrationSource::File(path.clone());
+        }
         config.mode = mode;
         config.camera_px = (args.width, args.height);
         config.seed = args.seed;
@@ -323,11 +326,57 @@ fn print_summary(report: &ScanReport) {
         None => println!("no ICP: the heads share no usable surface; calibrated pose used"),
     }
     println!("calibration: {}", report.calibration);
+    print_calibration_vs_truth(report);
     if report.surface_samples.is_none() {
         println!("no ground truth: RMSE and coverage are not measured (null in report.json)");
     }
     for w in &report.warnings {
         eprintln!("slscan: WARNING: {w}");
+    }
+}
+
+/// In simulation: an estimated calibration's error against the twin's
+/// truth, and the frame fits applied before measuring.
+fn print_calibration_vs_truth(report: &ScanReport) {
+    if let Some(e) = &report.calibration_vs_truth {
+        for h in &e.heads {
+            println!(
+                "  head {} vs twin truth: camera dfx {:+.2} dcx {:+.2} dcy {:+.2} px, projector dfx {:+.2} dcy {:+.2} px, camera->projector {:.3} deg / {:.2} mm",
+                h.name,
+                h.camera.dfx_px,
+                h.camera.dcx_px,
+                h.camera.dcy_px,
+                h.projector.dfx_px,
+                h.projector.dcy_px,
+                h.camera_to_projector.rotation_deg,
+                h.camera_to_projector.translation_mm
+            );
+        }
+        if let Some(p) = &e.head_to_head {
+            println!(
+                "  head-to-head vs twin truth: {:.3} deg / {:.2} mm (the ICP's start)",
+                p.rotation_deg, p.translation_mm
+            );
+        }
+    }
+    if let Some(fit) = &report.truth_frame_fit {
+        let heads: Vec<String> = fit
+            .heads
+            .iter()
+            .map(|o| format!("{:.3} deg / {:.0} um", o.rotation_deg, o.translation_um))
+            .collect();
+        println!(
+            "frames fitted onto the truth before measuring: heads {}, fused {:.3} deg / {:.0} um",
+            heads.join(", "),
+            fit.fused.rotation_deg,
+            fit.fused.translation_um
+        );
+    }
+    if let (Some(deg), Some(um)) = (
+        report.fused.pose_error_vs_truth_deg,
+        report.fused.pose_error_vs_truth_um,
+    ) {
+        println!("B->A pose used vs truth (frames fitted): {deg:.4} deg / {um:.1} um");
     }
 }
 

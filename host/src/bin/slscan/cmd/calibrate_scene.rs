@@ -1,0 +1,105 @@
+//! `slscan calibrate --sim --scene NAME`: calibrates both heads of a built-in
+//! dual-head twin scene from rendered checkerboard views
+//! (`calibration::twin_scene`), prints recovered against true values and
+//! writes the rig file `scan --sim --calibration FILE` reads.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Context;
+use hil_sim::twin::scenes::Detail;
+use hil_sim::twin::SensorModel;
+use slscan::calibration::head::HeadOptions;
+use slscan::calibration::truth_error::{rig_error, PoseError};
+use slscan::calibration::twin_scene::{calibrate_scene, scene_heads};
+use slscan::calibration::{write_rig, PinholeModel};
+
+use super::calibrate::{print_head, print_truth_comparison};
+
+/// What to calibrate and where to write it.
+pub struct SceneArgs<'a> {
+    /// Built-in scene name.
+    pub scene: &'a str,
+    /// Camera image size, pixels.
+    pub camera_px: (u32, u32),
+    /// Board views per head.
+    pub views: usize,
+    /// Head names.
+    pub names: [&'a str; 2],
+    /// Rays per camera pixel and axis of the board renders.
+    pub pixel_samples: u32,
+    /// Rig file to write.
+    pub out: &'a Path,
+}
+
+/// Runs the scene calibration with `sensor` and writes `args.out`.
+pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let scene = args.scene;
+    let detail = Detail {
+        camera: args.camera_px,
+        ..Detail::default()
+    };
+    let mut heads = scene_heads(scene, &detail, args.views, args.names)
+        .with_context(|| format!("setting up the heads of scene {scene}"))?;
+    for head in &mut heads.heads {
+        head.pixel_samples = args.pixel_samples;
+    }
+    println!(
+        "scene {scene}: {} board views per head, {} shared views for head-to-head, camera {}x{}",
+        heads.heads[0].world_from_board.len(),
+        heads.shared.len(),
+        detail.camera.0,
+        detail.camera.1
+    );
+    let cal = calibrate_scene(&heads, sensor, 1, options)
+        .with_context(|| format!("calibrating the heads of scene {scene}"))?;
+    for (h, head) in cal.heads.iter().enumerate() {
+        println!("== head {}", head.head.name);
+        print_head(head);
+        print_truth_comparison(&heads.heads[h].truth, head);
+    }
+    println!(
+        "head-to-head from {} shared views: rms {:.4} px",
+        heads.shared.len(),
+        cal.head_to_head.rms_px
+    );
+    println!("recovered vs true (digital twin):");
+    for (h, head) in cal.rig.heads.iter().enumerate() {
+        let truth = &heads.truth.heads[h];
+        print_device_vs_truth(&head.name, "camera", &head.camera, &truth.camera);
+        print_device_vs_truth(&head.name, "projector", &head.projector, &truth.projector);
+    }
+    let errors = rig_error(&cal.rig, &heads.truth);
+    for e in &errors.heads {
+        print_pose_error(
+            &format!("{} camera->projector", e.name),
+            &e.camera_to_projector,
+        );
+    }
+    if let Some(e) = &errors.head_to_head {
+        print_pose_error("head-to-head (camera A -> camera B)", e);
+    }
+    write_rig(args.out, &cal.rig).with_context(|| format!("writing {}", args.out.display()))?;
+    println!(
+        "wrote {} in {:.1} s",
+        args.out.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn print_device_vs_truth(head: &str, what: &str, got: &PinholeModel, truth: &PinholeModel) {
+    let (g, t) = (got.intrinsics, truth.intrinsics);
+    println!(
+        "  {head} {what:<9} fx {:.2} (true {:.2})  fy {:.2} ({:.2})  cx {:.2} ({:.2})  cy {:.2} ({:.2})",
+        g.fx, t.fx, g.fy, t.fy, g.cx, t.cx, g.cy, t.cy
+    );
+}
+
+fn print_pose_error(what: &str, e: &PoseError) {
+    println!(
+        "  {what}: rotation error {:.4} deg, translation error {:.3} mm",
+        e.rotation_deg, e.translation_mm
+    );
+}
