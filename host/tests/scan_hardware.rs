@@ -44,14 +44,7 @@ fn hardware_rig(
     let (_, calibration) = twin();
     let cameras = FolderCamera::new(FolderCameraConfig {
         root: folders.frames.clone(),
-        heads: calibration
-            .heads
-            .iter()
-            .map(|h| FolderHead {
-                name: h.name.clone(),
-                image_size_px: (h.camera.width_px, h.camera.height_px),
-            })
-            .collect(),
+        heads: FolderHead::of_rig(calibration),
         bit_depth: None,
         timeout,
         poll_interval: Duration::from_millis(20),
@@ -59,14 +52,7 @@ fn hardware_rig(
     })?;
     let projector = FolderProjector::new(
         folders.patterns.clone(),
-        calibration
-            .heads
-            .iter()
-            .map(|h| FolderProjectorHead {
-                name: h.name.clone(),
-                dmd_size_px: (h.projector.width_px, h.projector.height_px),
-            })
-            .collect(),
+        FolderProjectorHead::of_rig(calibration),
         PatternDelivery::Write,
     );
     let board = SerialBoard::open(port, ClientConfig::default())?;

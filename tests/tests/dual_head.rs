@@ -12,7 +12,7 @@ use hil_sim::faults::FaultPlan;
 use slscan::board::ClientConfig;
 use slscan::io::report::ScanReport;
 use slscan::rig::RigError;
-use slscan::scan::{scan_to_dir, Mode, ScanConfig, ScanError};
+use slscan::scan::{output, scan_to_dir, Mode, ScanConfig, ScanError};
 
 fn small(scene: &str) -> ScanConfig {
     let mut config = ScanConfig::new(scene);
@@ -136,9 +136,16 @@ fn simultaneous_identical_sequences_mask_the_aliased_overlap_loudly() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Also: an earlier run's outputs in the folder are gone afterwards (a user
+/// would take them for this run's result); files the scan never writes stay.
 #[test]
-fn board_going_silent_mid_scan_is_a_clear_error_and_writes_no_scan() {
+fn board_going_silent_mid_scan_is_a_clear_error_and_leaves_no_scan() {
     let dir = out_dir("silent");
+    std::fs::create_dir_all(&dir).unwrap();
+    for name in output::output_files() {
+        std::fs::write(dir.join(&name), b"an earlier run").unwrap();
+    }
+    std::fs::write(dir.join("notes.txt"), b"the user's").unwrap();
     let mut config = small("large-part");
     config.client = ClientConfig {
         attempt_timeout: Duration::from_millis(200),
@@ -158,8 +165,12 @@ fn board_going_silent_mid_scan_is_a_clear_error_and_writes_no_scan() {
         matches!(err, ScanError::Rig(RigError::Board(ref e)) if e.is_link_failure()),
         "{err:?}"
     );
-    assert!(!dir.join("scan.ply").exists());
-    assert!(!dir.exists() || std::fs::read_dir(&dir).unwrap().next().is_none());
+    let left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(left, ["notes.txt"], "only the user's file is left");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -6,5 +6,4 @@ mod estimated_calibration;
 mod faults;
 mod firmware_parity;
 mod scan_overlap;
-mod stale_output;
 mod sync_chain;

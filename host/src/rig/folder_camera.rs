@@ -41,6 +41,7 @@ use std::time::{Duration, Instant, SystemTime};
 
 use super::camera_source::FrameSource;
 use super::RigError;
+use crate::calibration::RigCalibration;
 use crate::io::images::load_gray;
 use crate::raster::Raster;
 
@@ -51,6 +52,20 @@ pub struct FolderHead {
     pub name: String,
     /// Camera image size (width, height), pixels.
     pub image_size_px: (u32, u32),
+}
+
+impl FolderHead {
+    /// Each calibrated head's camera: its name and image size.
+    pub fn of_rig(calibration: &RigCalibration) -> Vec<FolderHead> {
+        calibration
+            .heads
+            .iter()
+            .map(|h| FolderHead {
+                name: h.name.clone(),
+                image_size_px: (h.camera.width_px, h.camera.height_px),
+            })
+            .collect()
+    }
 }
 
 /// How to read frames from folders.

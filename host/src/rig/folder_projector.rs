@@ -20,6 +20,7 @@
 use std::path::{Path, PathBuf};
 
 use super::{Projector, RigError};
+use crate::calibration::RigCalibration;
 use crate::io::images::{list_images, load_gray, save_gray_png, ImageError};
 use crate::raster::Raster;
 
@@ -39,6 +40,20 @@ pub struct FolderProjectorHead {
     pub name: String,
     /// DMD size (width, height), pixels.
     pub dmd_size_px: (u32, u32),
+}
+
+impl FolderProjectorHead {
+    /// Each calibrated head's projector: its name and DMD size.
+    pub fn of_rig(calibration: &RigCalibration) -> Vec<FolderProjectorHead> {
+        calibration
+            .heads
+            .iter()
+            .map(|h| FolderProjectorHead {
+                name: h.name.clone(),
+                dmd_size_px: (h.projector.width_px, h.projector.height_px),
+            })
+            .collect()
+    }
 }
 
 /// Pattern sets as PNG files for the DMD vendor's GUI; see the module doc.

@@ -201,14 +201,7 @@ fn scan_hardware(
         .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
     let cameras = FolderCamera::new(FolderCameraConfig {
         root: frames.to_owned(),
-        heads: calibration
-            .heads
-            .iter()
-            .map(|h| FolderHead {
-                name: h.name.clone(),
-                image_size_px: (h.camera.width_px, h.camera.height_px),
-            })
-            .collect(),
+        heads: FolderHead::of_rig(&calibration),
         bit_depth: args.bit_depth,
         timeout: Duration::from_secs_f64(args.frame_timeout_s.max(0.0)),
         poll_interval: Duration::from_millis(args.frame_poll_ms.max(1)),
@@ -220,14 +213,7 @@ fn scan_hardware(
         .unwrap_or_else(|| args.out.join("dmd_patterns"));
     let projector = FolderProjector::new(
         patterns_dir,
-        calibration
-            .heads
-            .iter()
-            .map(|h| FolderProjectorHead {
-                name: h.name.clone(),
-                dmd_size_px: (h.projector.width_px, h.projector.height_px),
-            })
-            .collect(),
+        FolderProjectorHead::of_rig(&calibration),
         if args.patterns_preloaded {
             PatternDelivery::Preloaded
         } else {
