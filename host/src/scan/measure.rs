@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use hil_sim::twin::{CameraGeometry, TwinRig};
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::Isometry3;
 
 use super::clouds::{points_f64, transformed};
 use super::metrics::{self, Sample};
@@ -170,13 +170,7 @@ fn error_map(
             if !(px.point_m[0].is_finite() && t[0].is_finite()) {
                 return f32::NAN;
             }
-            let tt = head_from_world * nalgebra::Point3::new(t[0] as f64, t[1] as f64, t[2] as f64);
-            let p = Vector3::new(
-                px.point_m[0] as f64,
-                px.point_m[1] as f64,
-                px.point_m[2] as f64,
-            );
-            (p - tt.coords).norm() as f32
+            metrics::point_error_m(&px.point_m, t, head_from_world) as f32
         })
         .collect();
     Raster {

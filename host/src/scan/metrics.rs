@@ -65,6 +65,17 @@ fn to_frame(frame_from_world: &Isometry3<f64>, p: &[f32; 3]) -> Vector3<f64> {
     (frame_from_world * w).coords
 }
 
+/// Distance, metres, of a reconstructed point (head frame) from the true
+/// point of its pixel (world frame).
+pub fn point_error_m(
+    point_m: &[f32; 3],
+    truth_m: &[f32; 3],
+    head_from_world: &Isometry3<f64>,
+) -> f64 {
+    let p = Vector3::new(point_m[0] as f64, point_m[1] as f64, point_m[2] as f64);
+    (p - to_frame(head_from_world, truth_m)).norm()
+}
+
 /// Compares a head's reconstruction (in its camera frame) with the truth of
 /// its camera; `projector` is the head's projector in the twin.
 pub fn pixel_accuracy(
@@ -80,14 +91,7 @@ pub fn pixel_accuracy(
         .par_iter()
         .zip(&truth.point_m)
         .filter(|(px, t)| px.status == PixelStatus::Valid && t[0].is_finite())
-        .map(|(px, t)| {
-            let p = Vector3::new(
-                px.point_m[0] as f64,
-                px.point_m[1] as f64,
-                px.point_m[2] as f64,
-            );
-            (p - to_frame(head_from_world, t)).norm()
-        })
+        .map(|(px, t)| point_error_m(&px.point_m, t, head_from_world))
         .collect();
     let sigmas: Vec<f64> = recon
         .pixels
@@ -145,14 +149,7 @@ pub fn masked_accuracy(
         .zip(&truth.point_m)
         .zip(mask)
         .filter(|((px, t), &m)| m && px.status == PixelStatus::Valid && t[0].is_finite())
-        .map(|((px, t), _)| {
-            let p = Vector3::new(
-                px.point_m[0] as f64,
-                px.point_m[1] as f64,
-                px.point_m[2] as f64,
-            );
-            (p - to_frame(head_from_world, t)).norm()
-        })
+        .map(|((px, t), _)| point_error_m(&px.point_m, t, head_from_world))
         .collect();
     MaskedAccuracy {
         pixels: mask.iter().filter(|&&m| m).count(),
