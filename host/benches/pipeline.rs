@@ -4,7 +4,8 @@
 //! Prints a table for 1 and 2 rayon threads and two input types: `u16 (12-bit)` (what a
 //! machine-vision camera delivers; `ReconstructConfig::full_scale = 4095`) and `f32`
 //! (the same frames as floats in [0, 1]), and u16 through a projector model with lens
-//! distortion (triangulation then adds 4 vectorised Newton steps on the depth). Columns: the fused pass into a fresh result
+//! distortion (triangulation then adds a first-order start and 2 vectorised Newton steps on
+//! the depth). Columns: the fused pass into a fresh result
 //! (`reconstruct`), the fused pass into a reused result (`reconstruct_into`, no fresh
 //! memory), and the staged passes with their per-stage wall times. Frames come from the
 //! formula-based renderer (`slscan::synth`): a plane with the two calibration spheres,
@@ -19,9 +20,9 @@
 //! when other processes contend for memory).
 //!
 //! Distorted projector (k1 0.02, k2 -0.005, p1 2e-4, p2 -1e-4, what calibrated heads
-//! have), u16: fused ~395 ms CPU, reused ~345 ms CPU, staged triangulation ~270-300 ms
-//! wall (machine loaded, load average ~3.6 on 2 cores), i.e. ~120 ms CPU more than the
-//! ideal projector; was 1117 ms wall fused / 791 ms reused / 793 ms triangulation (idle
+//! have), u16: fused ~355 ms CPU, reused ~305 ms CPU, staged triangulation ~260 ms wall
+//! (machine loaded, load average ~3.7 on 2 cores), i.e. ~80 ms CPU more than the ideal
+//! projector (4 plain Newton steps: ~120 ms more); was 1117 ms wall fused / 791 ms reused / 793 ms triangulation (idle
 //! machine, 2 threads) when it fell back to the per-pixel fixed-point path.
 
 use std::time::Instant;
