@@ -20,9 +20,9 @@
 //! when other processes contend for memory).
 //!
 //! Distorted projector (k1 0.02, k2 -0.005, p1 2e-4, p2 -1e-4, what calibrated heads
-//! have), u16: fused ~355 ms CPU, reused ~305 ms CPU, staged triangulation ~260 ms wall
-//! (machine loaded, load average ~3.7 on 2 cores), i.e. ~80 ms CPU more than the ideal
-//! projector (4 plain Newton steps: ~120 ms more); was 1117 ms wall fused / 791 ms reused / 793 ms triangulation (idle
+//! have), u16, 2 threads on a lightly loaded machine: fused 199 ms wall / 350 ms CPU
+//! (ideal projector 157 / 267), reused 164 / 311 (113 / 223), staged triangulation 165 ms
+//! (120); ~80 ms CPU more than the ideal projector (4 plain Newton steps: ~120 ms); was 1117 ms wall fused / 791 ms reused / 793 ms triangulation (idle
 //! machine, 2 threads) when it fell back to the per-pixel fixed-point path.
 
 use std::time::Instant;
