@@ -23,7 +23,7 @@ use super::head::{
     calibrate_head, calibrate_head_to_head, HeadCalibration, HeadError, HeadOptions,
 };
 use super::twin_head::{self, TwinHead};
-use super::{Pose, RigCalibration};
+use super::{Head, Pose, RigCalibration};
 
 /// Shared-view board poses tried in the overlap (centre x, y, z in metres; Rodrigues
 /// tilt): the board held where both cameras see it whole. Poses that either camera
@@ -156,7 +156,7 @@ pub fn scene_heads(
         heads,
         names: names.map(String::from),
         shared,
-        truth: truth(&rig, names),
+        truth: truth(&rig, names).expect("checked above: two cameras, two projectors"),
     })
 }
 
@@ -250,18 +250,19 @@ fn seen_whole(rig: &Rig, h: usize, pose: &hil_sim::twin::Pose) -> bool {
 }
 
 /// The twin's true devices of a dual-head rig: each head in its camera frame,
-/// head-to-head = camera 0 -> camera 1.
-pub fn truth(rig: &Rig, names: [&str; 2]) -> RigCalibration {
+/// head-to-head = camera 0 -> camera 1; `None` unless the rig has two cameras
+/// and two projectors.
+pub fn truth(rig: &Rig, names: [&str; 2]) -> Option<RigCalibration> {
     let heads = (0..2)
-        .map(|h| head_from_twin(rig, h, h, names[h]).expect("two heads"))
-        .collect();
+        .map(|h| head_from_twin(rig, h, h, names[h]))
+        .collect::<Option<Vec<Head>>>()?;
     let world_to_0 = pose_from_twin(&rig.cameras[0].model.world_from_device);
     let world_to_1 = pose_from_twin(&rig.cameras[1].model.world_from_device);
     let head_to_head: Pose = world_to_1.compose(&world_to_0.inverse());
-    RigCalibration {
+    Some(RigCalibration {
         heads,
         head_to_head: Some(head_to_head),
-    }
+    })
 }
 
 #[cfg(test)]
@@ -276,7 +277,7 @@ mod tests {
         };
         let s = scene_heads("large-part", &detail, 4, ["A", "B"]).expect("dual-head scene");
         let (_, rig) = built_in("large-part", &detail).unwrap();
-        assert_eq!(s.truth, truth(&rig, ["A", "B"]));
+        assert_eq!(truth(&rig, ["A", "B"]).as_ref(), Some(&s.truth));
         s.truth.validate().expect("valid truth");
         assert!(!s.shared.is_empty());
         for h in 0..2 {
