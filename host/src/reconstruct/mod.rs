@@ -152,15 +152,23 @@ pub struct PixelResult {
     pub background: f32,
 }
 
-const EMPTY: PixelResult = PixelResult {
-    phase_u: f32::NAN,
-    status: PixelStatus::Masked,
-    point_m: [f32::NAN; 3],
-    depth_m: f32::NAN,
-    sigma_m: f32::NAN,
-    modulation: 0.0,
-    background: 0.0,
-};
+const EMPTY: PixelResult = PixelResult::masked(0.0, 0.0);
+
+impl PixelResult {
+    /// A masked pixel with its measured modulation and background (no phase,
+    /// no point): where every pixel's result starts.
+    pub const fn masked(modulation: f32, background: f32) -> Self {
+        PixelResult {
+            phase_u: f32::NAN,
+            status: PixelStatus::Masked,
+            point_m: [f32::NAN; 3],
+            depth_m: f32::NAN,
+            sigma_m: f32::NAN,
+            modulation,
+            background,
+        }
+    }
+}
 
 /// The organised result, one [`PixelResult`] per camera pixel, plus the cloud.
 #[derive(Clone, Debug)]

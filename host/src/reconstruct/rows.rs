@@ -127,15 +127,7 @@ impl Reconstructor {
         let sigma_px_times_b = self.noise_times_crb * p0 / tau;
         let mut valid = 0;
         for (x, o) in out.iter_mut().enumerate() {
-            let mut r = PixelResult {
-                phase_u: f32::NAN,
-                status: PixelStatus::Masked,
-                point_m: [f32::NAN; 3],
-                depth_m: f32::NAN,
-                sigma_m: f32::NAN,
-                modulation: u.min_modulation[x],
-                background: u.background[x],
-            };
+            let mut r = PixelResult::masked(u.min_modulation[x], u.background[x]);
             match self.direction_phase(u, x) {
                 Err(s) => r.status = s,
                 Ok(phase) => {
@@ -166,15 +158,10 @@ impl Reconstructor {
     ) -> usize {
         let mut valid = 0;
         for (x, o) in out.iter_mut().enumerate() {
-            let mut r = PixelResult {
-                phase_u: f32::NAN,
-                status: PixelStatus::Masked,
-                point_m: [f32::NAN; 3],
-                depth_m: f32::NAN,
-                sigma_m: f32::NAN,
-                modulation: u.min_modulation[x].min(v.min_modulation[x]),
-                background: u.background[x],
-            };
+            let mut r = PixelResult::masked(
+                u.min_modulation[x].min(v.min_modulation[x]),
+                u.background[x],
+            );
             match (self.direction_phase(u, x), self.direction_phase(v, x)) {
                 (Ok(pu), Ok(pv)) => {
                     self.triangulate_two_rays(first_index + x, pu, pv, u.modulation[x], &mut r)
