@@ -183,9 +183,6 @@ pub enum RigError {
     /// The simulator failed (pty, twin rendering).
     #[error("simulator: {0}")]
     Sim(String),
-    /// The rig has no implementation for this yet.
-    #[error("PLACEHOLDER: {0}")]
-    Placeholder(&'static str),
 }
 
 /// The sync board: runs a plan to its end.
