@@ -8,7 +8,7 @@
 
 use nalgebra::{DMatrix, DVector, Point2, Point3, Vector2, Vector3};
 
-use super::lm::{difference_step, minimise, LeastSquaresProblem, LmError, LmOptions, LmReport};
+use super::lm::{block_jacobian, minimise, LeastSquaresProblem, LmError, LmOptions, LmReport};
 use super::rodrigues::{pose_from_rodrigues, rodrigues_from_rotation};
 use super::zhang::{closed_form, PlanarView, ZhangError};
 use super::{Distortion, Intrinsics, PinholeModel, Pose};
@@ -167,25 +167,15 @@ impl LeastSquaresProblem for ZhangProblem<'_> {
     }
 
     fn jacobian(&self, p: &DVector<f64>, jac: &mut DMatrix<f64>) {
-        jac.fill(0.0);
-        let mut q = p.clone();
-        for v in 0..self.views.len() {
-            let (a, b) = (self.offsets[v], self.offsets[v + 1]);
-            let mut plus = vec![0.0; b - a];
-            let mut minus = vec![0.0; b - a];
-            let view_params = self.intrinsic_count + 6 * v..self.intrinsic_count + 6 * v + 6;
-            for j in (0..self.intrinsic_count).chain(view_params) {
-                let h = difference_step(p[j]);
-                q[j] = p[j] + h;
-                self.view_into(&q, v, &mut plus);
-                q[j] = p[j] - h;
-                self.view_into(&q, v, &mut minus);
-                q[j] = p[j];
-                for (row, (x, y)) in plus.iter().zip(&minus).enumerate() {
-                    jac[(a + row, j)] = (x - y) / (2.0 * h);
-                }
-            }
-        }
+        // Each view's residuals depend on the intrinsics and its own 6 pose parameters.
+        let n = self.intrinsic_count;
+        block_jacobian(
+            p,
+            &self.offsets,
+            |v| (0..n).chain(n + 6 * v..n + 6 * v + 6),
+            |q, v, out| self.view_into(q, v, out),
+            jac,
+        );
     }
 }
 

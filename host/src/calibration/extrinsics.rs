@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, Point2, Vector2, Vector3};
 
 use super::bundle::{rms_px, view_residuals};
 use super::homography::fit_homography;
-use super::lm::{difference_step, minimise, LeastSquaresProblem, LmError, LmOptions, LmReport};
+use super::lm::{block_jacobian, minimise, LeastSquaresProblem, LmError, LmOptions, LmReport};
 use super::rodrigues::{pose_from_rodrigues, rodrigues_from_rotation};
 use super::zhang::{pose_from_homography, PlanarView};
 use super::{Intrinsics, PinholeModel, Pose};
@@ -137,24 +137,14 @@ impl LeastSquaresProblem for PairProblem<'_> {
     }
 
     fn jacobian(&self, p: &DVector<f64>, jac: &mut DMatrix<f64>) {
-        jac.fill(0.0);
-        let mut q = p.clone();
-        for v in 0..self.views_a.len() {
-            let (s, e) = (self.offsets[v], self.offsets[v + 1]);
-            let mut plus = vec![0.0; e - s];
-            let mut minus = vec![0.0; e - s];
-            for j in (0..6).chain(6 + 6 * v..12 + 6 * v) {
-                let h = difference_step(p[j]);
-                q[j] = p[j] + h;
-                self.view_into(&q, v, &mut plus);
-                q[j] = p[j] - h;
-                self.view_into(&q, v, &mut minus);
-                q[j] = p[j];
-                for (row, (x, y)) in plus.iter().zip(&minus).enumerate() {
-                    jac[(s + row, j)] = (x - y) / (2.0 * h);
-                }
-            }
-        }
+        // Each view's residuals depend on the pair pose and its own board pose.
+        block_jacobian(
+            p,
+            &self.offsets,
+            |v| (0..6).chain(6 + 6 * v..12 + 6 * v),
+            |q, v, out| self.view_into(q, v, out),
+            jac,
+        );
     }
 }
 

@@ -53,6 +53,37 @@ pub fn numeric_jacobian<P: LeastSquaresProblem + ?Sized>(
     }
 }
 
+/// Central-difference Jacobian of a problem made of independent blocks (views):
+/// block `v` owns residual rows `offsets[v]..offsets[v + 1]`, which depend only on
+/// the parameters `params_of(v)` and are computed by `block_residuals(params, v,
+/// out)`. Entries outside each block's parameters are zero.
+pub fn block_jacobian<I: Iterator<Item = usize>>(
+    params: &DVector<f64>,
+    offsets: &[usize],
+    params_of: impl Fn(usize) -> I,
+    block_residuals: impl Fn(&DVector<f64>, usize, &mut [f64]),
+    jac: &mut DMatrix<f64>,
+) {
+    jac.fill(0.0);
+    let mut q = params.clone();
+    for v in 0..offsets.len().saturating_sub(1) {
+        let (a, b) = (offsets[v], offsets[v + 1]);
+        let mut plus = vec![0.0; b - a];
+        let mut minus = vec![0.0; b - a];
+        for j in params_of(v) {
+            let h = difference_step(params[j]);
+            q[j] = params[j] + h;
+            block_residuals(&q, v, &mut plus);
+            q[j] = params[j] - h;
+            block_residuals(&q, v, &mut minus);
+            q[j] = params[j];
+            for (row, (x, y)) in plus.iter().zip(&minus).enumerate() {
+                jac[(a + row, j)] = (x - y) / (2.0 * h);
+            }
+        }
+    }
+}
+
 /// Stopping rules of [`minimise`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LmOptions {
