@@ -3,41 +3,20 @@
 //! and projector, Gaussian intensity noise of known sigma. Numbers are printed (run with
 //! `--nocapture`) and held against the physical limit where one exists.
 
-use nalgebra::{Point3, Vector3};
-use slscan::calibration::{CameraModel, PinholeModel, ProjectorModel};
+#[path = "support/formula_scene.rs"]
+mod formula_scene;
+
+use formula_scene::{light, rig, tilted_plane, SIGMA_I};
+
+use nalgebra::Point3;
 use slscan::fit::{fit_plane, fit_sphere};
 use slscan::phase::{phase_noise_crb, wrap_pi, PhaseShift};
 use slscan::raster::Raster;
 use slscan::reconstruct::{Directions, ReconstructConfig, Reconstructor};
-use slscan::synth::{self, GroundTruth, Lighting, Surface};
+use slscan::synth::{self, GroundTruth, Surface};
 use slscan::unwrap::PixelStatus;
 
-const SIGMA_I: f32 = 0.01;
 const PERIODS: [f64; 3] = [20.0, 22.0, 24.0];
-
-fn rig() -> (CameraModel, ProjectorModel) {
-    synth::stereo_rig(
-        PinholeModel::ideal(320, 240, 800.0),
-        PinholeModel::ideal(912, 1140, 1800.0),
-        0.15,
-        0.5,
-    )
-}
-
-fn light() -> Lighting {
-    Lighting {
-        ambient: 0.1,
-        gain: 0.7,
-        noise_sigma: SIGMA_I,
-    }
-}
-
-fn tilted_plane() -> Vec<Surface> {
-    vec![Surface::Plane {
-        point_m: Point3::new(0.0, 0.0, 0.5),
-        normal: Vector3::new(0.15, 0.08, -1.0).normalize(),
-    }]
-}
 
 /// RMS over lit pixels of (measured - true wrapped phase) / CRB(true B).
 fn crb_ratio(truth: &GroundTruth, steps: usize, period: f64, seed: u64) -> (f64, usize) {

@@ -2,42 +2,21 @@
 //! (`slscan::synth`, not twin renders) of a tilted plane and the calibration spheres,
 //! checked against the projector coordinate each camera pixel truly sees.
 
-use nalgebra::{Point3, Vector3};
-use slscan::calibration::{CameraModel, PinholeModel, ProjectorModel};
+#[path = "support/formula_scene.rs"]
+mod formula_scene;
+
+use formula_scene::{light, rig, tilted_plane};
+
 use slscan::phase::ftp::{ftp_phase, FringeAxis};
 use slscan::phase::{modulation_mask, wrap_pi, PhaseShift, WrappedPhase};
 use slscan::raster::Raster;
-use slscan::synth::{self, GroundTruth, Lighting, Surface};
+use slscan::synth::{self, GroundTruth};
 use slscan::unwrap::gray_code::{binary_to_gray, decode_with_inverse, unwrap_with_blocks};
 use slscan::unwrap::pdm::Pdm;
 use slscan::unwrap::quality_guided::{unwrap_quality_guided, Seed};
 use slscan::unwrap::{AbsolutePhase, PixelStatus};
 
 const TAU: f64 = std::f64::consts::TAU;
-
-fn rig() -> (CameraModel, ProjectorModel) {
-    synth::stereo_rig(
-        PinholeModel::ideal(320, 240, 800.0),
-        PinholeModel::ideal(912, 1140, 1800.0),
-        0.15,
-        0.5,
-    )
-}
-
-fn light() -> Lighting {
-    Lighting {
-        ambient: 0.1,
-        gain: 0.7,
-        noise_sigma: 0.01,
-    }
-}
-
-fn plane() -> Vec<Surface> {
-    vec![Surface::Plane {
-        point_m: Point3::new(0.0, 0.0, 0.5),
-        normal: Vector3::new(0.15, 0.08, -1.0).normalize(),
-    }]
-}
 
 fn wrapped(truth: &GroundTruth, period: f64, seed: u64) -> WrappedPhase {
     let frames = synth::render_fringe_set(truth, &[period], 4, true, &light(), seed);
@@ -143,7 +122,7 @@ fn gray_code_plus_phase_on_spheres() {
 #[test]
 fn quality_guided_unwraps_a_plane_up_to_one_constant_order() {
     let (camera, projector) = rig();
-    let truth = synth::trace(&plane(), &camera, &projector);
+    let truth = synth::trace(&tilted_plane(), &camera, &projector);
     let period = 20.0;
     let w = wrapped(&truth, period, 400);
     let seed = Seed {
@@ -163,7 +142,7 @@ fn quality_guided_unwraps_a_plane_up_to_one_constant_order() {
 #[test]
 fn ftp_single_shot_phase_error_on_a_plane() {
     let (camera, projector) = rig();
-    let truth = synth::trace(&plane(), &camera, &projector);
+    let truth = synth::trace(&tilted_plane(), &camera, &projector);
     let period_proj = 20.0;
     let img = synth::render(
         &truth,
