@@ -31,6 +31,7 @@ use slscan::calibration::{Distortion, PinholeModel};
 use slscan::phase::Sample;
 use slscan::raster::Raster;
 use slscan::reconstruct::{ReconstructConfig, Reconstructor, StageTimes};
+use slscan::simd::Simd;
 use slscan::synth::{self, Lighting};
 
 /// CPU seconds used by the whole process so far (all threads): on a shared, loaded
@@ -86,8 +87,9 @@ fn main() {
         .collect();
     let refs_u16: Vec<&Raster<u16>> = frames_u16.iter().collect();
     println!(
-        "set-up (render 12 frames, not timed below): {:.2} s",
-        t.elapsed().as_secs_f64()
+        "set-up (render 12 frames, not timed below): {:.2} s; row loops built for {:?}",
+        t.elapsed().as_secs_f64(),
+        Simd::best()
     );
 
     println!("| input | threads | constructor ms | fused wall ms | fused CPU ms | reused wall ms | reused CPU ms | staged wall ms: phase | unwrap | triangulate | cloud + normals | total | points |");
@@ -127,6 +129,18 @@ fn main() {
                 ctor_ms,
                 runs,
             );
+            // The same without the AVX2 build of the row loops: what a CPU without AVX2
+            // gets, and the ratio the runtime dispatch buys on this one.
+            if Simd::best() != Simd::Baseline {
+                row(
+                    &rec_distorted.with_simd(Simd::Baseline),
+                    &refs_u16,
+                    "u16, distorted, baseline SSE2",
+                    threads,
+                    ctor_ms,
+                    runs,
+                );
+            }
         });
     }
 }

@@ -27,6 +27,7 @@ pub mod raster;
 pub mod reconstruct;
 pub mod rig;
 pub mod scan;
+pub mod simd;
 pub mod synth;
 pub mod triangulation;
 pub mod unwrap;

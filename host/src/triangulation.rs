@@ -168,6 +168,7 @@ impl Triangulator {
     ///
     /// # Panics
     /// If the run extends past the last camera pixel (a caller bug, not bad data).
+    #[inline(always)]
     pub fn intersect_columns(&self, first_index: usize, column_px: &[f32], out: &mut ColumnHits) {
         let len = column_px.len();
         out.resize(len);
@@ -215,6 +216,7 @@ impl Triangulator {
     /// derivative by the chain rule. Each step needs one reciprocal and ~40 multiply-adds.
     /// A point is kept only when every iterate lies in front of both devices and the last
     /// step was small (the iteration converged).
+    #[inline(always)]
     fn intersect_columns_distorted(
         &self,
         rays: &[[f32; 2]],

@@ -175,6 +175,7 @@ impl PhaseShift {
     ///
     /// Works in tiles of columns so the sums stay in L1 cache, with the shift index
     /// outside the column loops so they vectorise.
+    #[inline(always)]
     pub fn decode_row_scaled<T: Sample>(
         &self,
         rows: &[&[T]],
@@ -304,7 +305,7 @@ pub fn wrap_pi(a: f32) -> f32 {
 
 /// `atan2(y, x)` to within 1.2e-6 rad (checked in the tests), several times faster than
 /// `f32::atan2`: the phase of every pixel of every frequency goes through here.
-#[inline]
+#[inline(always)]
 pub fn fast_atan2(y: f32, x: f32) -> f32 {
     use std::f32::consts::{FRAC_PI_2, PI};
     // Branch-free (selects only) so that row loops vectorise.

@@ -27,6 +27,7 @@ use crate::calibration::{CameraModel, Head, ProjectorModel};
 use crate::phase::{PhaseError, PhaseShift, Sample};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
+use crate::simd::Simd;
 use crate::triangulation::{ProjectorAxis, Triangulator};
 use crate::unwrap::heterodyne::Heterodyne;
 use crate::unwrap::{PixelStatus, UnwrapError};
@@ -204,6 +205,8 @@ pub struct Reconstructor {
     min_reliable_modulation: f32,
     /// `noise_sigma * sqrt(2 / N)`: the CRB phase noise is this over B.
     noise_times_crb: f32,
+    /// Which build of the row loops runs (the widest the CPU has, unless set).
+    simd: Simd,
 }
 
 impl Reconstructor {
@@ -243,7 +246,15 @@ impl Reconstructor {
             triangulator: Triangulator::new(camera, projector),
             min_reliable_modulation,
             noise_times_crb: sigma_phi_times_b as f32,
+            simd: Simd::best(),
         })
+    }
+
+    /// The same pipeline with its row loops built for `simd` (the bench compares the
+    /// builds; results are identical).
+    pub fn with_simd(mut self, simd: Simd) -> Self {
+        self.simd = simd;
+        self
     }
 
     /// The configuration.
@@ -512,6 +523,42 @@ mod tests {
             rec.reconstruct(&wrong, None),
             Err(ReconstructError::CameraSize { .. })
         ));
+    }
+
+    #[test]
+    fn every_simd_build_gives_the_same_bits() {
+        // A distorted projector, so the Newton path is compared too.
+        let (camera, mut projector) = small_rig();
+        projector.distortion.k1 = 0.03;
+        projector.distortion.p1 = 3e-4;
+        let truth = synth::trace(&synth::two_spheres(0.5, 0.6), &camera, &projector);
+        let light = synth::Lighting {
+            ambient: 0.1,
+            gain: 0.7,
+            noise_sigma: 0.005,
+        };
+        let periods = vec![9.0, 10.0, 11.0];
+        let frames = synth::render_fringe_set(&truth, &periods, 4, true, &light, 3);
+        let refs: Vec<&Raster<f32>> = frames.iter().collect();
+        let rec = Reconstructor::new(&camera, &projector, ReconstructConfig::new(periods)).unwrap();
+        let best = rec.clone().with_simd(Simd::best());
+        let baseline = rec.with_simd(Simd::Baseline);
+        let (a, b) = (
+            best.reconstruct(&refs, None).unwrap(),
+            baseline.reconstruct(&refs, None).unwrap(),
+        );
+        assert!(a.cloud.len() > 500, "{}", a.cloud.len());
+        // Bit for bit (NaNs included), not within a tolerance.
+        let bits = |r: &Reconstruction| -> Vec<u32> {
+            r.pixels
+                .data
+                .iter()
+                .flat_map(|p| [p.phase_u, p.point_m[0], p.point_m[2], p.depth_m, p.sigma_m])
+                .map(f32::to_bits)
+                .collect()
+        };
+        assert_eq!(bits(&a), bits(&b));
+        assert_eq!(a.cloud, b.cloud);
     }
 
     #[test]

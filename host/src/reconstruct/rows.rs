@@ -8,6 +8,7 @@
 
 use super::{PixelResult, Reconstructor};
 use crate::phase::Sample;
+use crate::simd::simd_run;
 use crate::triangulation::ColumnHits;
 use crate::unwrap::heterodyne::Heterodyne;
 use crate::unwrap::PixelStatus;
@@ -37,6 +38,7 @@ pub(super) struct Scratch {
 impl Reconstructor {
     /// Decodes one direction of one row (`rows[p * N + n]` is frame n of period p),
     /// samples scaled by `scale` into `[0, 1]` units.
+    #[inline(always)]
     pub(super) fn decode_row<T: Sample>(&self, rows: &[&[T]], scale: f32, out: &mut Decoded) {
         let n = self.config.steps;
         let k = self.config.periods_px.len();
@@ -71,13 +73,14 @@ impl Reconstructor {
     }
 
     /// Heterodyne over one decoded row: fills `dec.absolute`.
+    #[inline(always)]
     pub(super) fn unwrap_row(heterodyne: &Heterodyne, dec: &mut Decoded) {
         heterodyne.unwrap_row(&dec.phase, &mut dec.absolute);
     }
 
     /// Absolute phase of one direction at a pixel, or why not (mask, order noise,
     /// heterodyne residual).
-    #[inline]
+    #[inline(always)]
     fn direction_phase(&self, dec: &Decoded, x: usize) -> Result<f32, PixelStatus> {
         let b = dec.min_modulation[x];
         // Written so that a NaN modulation (corrupt samples) is masked too.
@@ -93,6 +96,7 @@ impl Reconstructor {
 
     /// Triangulates one unwrapped row (`first_index` = index of its first pixel) into the
     /// organised output; returns the number of valid pixels.
+    #[inline(always)]
     pub(super) fn finish_row(
         &self,
         first_index: usize,
@@ -174,7 +178,9 @@ impl Reconstructor {
         valid
     }
 
-    /// All three stages for one row of the fused pass.
+    /// All three stages for one row of the fused pass, each built for `self.simd` (one
+    /// dispatch per stage: a closure holding all three is too large for LLVM to inline
+    /// into the AVX2 function).
     pub(super) fn fused_row<T: Sample>(
         &self,
         y: usize,
@@ -187,21 +193,19 @@ impl Reconstructor {
         let width = out.len();
         let span = y * width..(y + 1) * width;
         let rows: Vec<&[T]> = frames_u.iter().map(|f| &f.data[span.clone()]).collect();
-        self.decode_row(&rows, scale, &mut scratch.u);
-        Self::unwrap_row(&self.heterodyne_u, &mut scratch.u);
+        let simd = self.simd;
+        simd_run!(simd, self.decode_row(&rows, scale, &mut scratch.u));
+        simd_run!(simd, Self::unwrap_row(&self.heterodyne_u, &mut scratch.u));
         if let Some(fv) = frames_v {
             let rows: Vec<&[T]> = fv.iter().map(|f| &f.data[span.clone()]).collect();
-            self.decode_row(&rows, scale, &mut scratch.v);
-            Self::unwrap_row(&self.heterodyne_v, &mut scratch.v);
+            simd_run!(simd, self.decode_row(&rows, scale, &mut scratch.v));
+            simd_run!(simd, Self::unwrap_row(&self.heterodyne_v, &mut scratch.v));
         }
         let v = frames_v.map(|_| &scratch.v);
-        self.finish_row(
-            y * width,
-            &scratch.u,
-            v,
-            &mut scratch.column,
-            &mut scratch.hits,
-            out,
+        let (column, hits) = (&mut scratch.column, &mut scratch.hits);
+        simd_run!(
+            simd,
+            self.finish_row(y * width, &scratch.u, v, column, hits, out)
         )
     }
 }

@@ -10,6 +10,7 @@ use super::{Directions, ReconstructError, Reconstruction, Reconstructor, StageTi
 use crate::phase::Sample;
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
+use crate::simd::simd_run;
 use crate::triangulation::ColumnHits;
 
 impl Reconstructor {
@@ -36,7 +37,7 @@ impl Reconstructor {
                 let span = y * width..(y + 1) * width;
                 let rows: Vec<&[T]> = frames_u.iter().map(|f| &f.data[span.clone()]).collect();
                 let mut d = Decoded::default();
-                self.decode_row(&rows, scale, &mut d);
+                simd_run!(self.simd, self.decode_row(&rows, scale, &mut d));
                 d
             })
             .collect();
@@ -45,7 +46,7 @@ impl Reconstructor {
         let t = Instant::now();
         decoded
             .par_iter_mut()
-            .for_each(|d| Self::unwrap_row(&self.heterodyne_u, d));
+            .for_each(|d| simd_run!(self.simd, Self::unwrap_row(&self.heterodyne_u, d)));
         times.unwrap_s = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
@@ -57,7 +58,10 @@ impl Reconstructor {
             .map_init(
                 || (Vec::new(), ColumnHits::default()),
                 |(column, hits), (y, (row, d))| {
-                    self.finish_row(y * width, d, None, column, hits, row)
+                    simd_run!(
+                        self.simd,
+                        self.finish_row(y * width, d, None, column, hits, row)
+                    )
                 },
             )
             .collect();

@@ -182,6 +182,7 @@ impl Heterodyne {
     ///
     /// # Panics
     /// If `wrapped.len()` is not `periods x absolute.len()` (a caller bug, not bad data).
+    #[inline(always)]
     pub fn unwrap_row(&self, wrapped: &[f32], absolute: &mut [f32]) {
         const TILE: usize = 64;
         let k = self.periods_px.len();
@@ -283,7 +284,7 @@ impl Heterodyne {
 
 /// Wraps the difference of two wrapped phases (in (-2 pi, 2 pi)) back into (-pi, pi]
 /// without a division: this runs for every pixel and level.
-#[inline]
+#[inline(always)]
 fn wrap_difference(d: f32) -> f32 {
     use std::f32::consts::{PI, TAU};
     if d > PI {

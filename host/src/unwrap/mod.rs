@@ -170,13 +170,13 @@ pub fn fringe_order(estimate_rad: f32, wrapped_rad: f32, max_residual_rad: f32) 
 /// Round half away from zero through an integer conversion. `f32::round`/`floor` are libm
 /// calls on baseline x86-64 (no SSE4.1), and these run for every pixel; fringe orders
 /// are far inside the i32 range (larger inputs saturate, NaN gives 0).
-#[inline]
+#[inline(always)]
 pub fn round_fast(x: f32) -> f32 {
     (x + 0.5f32.copysign(x)) as i32 as f32
 }
 
 /// `ceil` through an integer conversion (see [`round_fast`]).
-#[inline]
+#[inline(always)]
 pub fn ceil_fast(x: f32) -> f32 {
     let t = x as i32 as f32;
     if t < x {
