@@ -78,7 +78,7 @@ fn run(scene: &[Surface], periods: &[f64], seed: u64) -> Run {
 /// than pi from the truth (a wrong fringe order).
 fn unwrap_errors(run: &Run, period: f64) -> (usize, usize, usize) {
     let (mut valid, mut lit, mut errors) = (0, 0, 0);
-    for (i, p) in run.rec.pixels.data.iter().enumerate() {
+    for (i, p) in run.rec.pixels.iter().enumerate() {
         let Some((u, _)) = run.truth.projector_px.data[i] else {
             continue;
         };
@@ -163,7 +163,6 @@ fn calibration_spheres_fit_with_small_radius_and_distance_errors() {
         let pts: Vec<Point3<f64>> = r
             .rec
             .pixels
-            .data
             .iter()
             .enumerate()
             .filter(|(i, p)| p.status == PixelStatus::Valid && r.truth.surface.data[*i] == Some(id))

@@ -189,7 +189,7 @@ fn heterodyne_unwrapping_makes_no_order_errors_on_valid_pixels_of_built_in_scene
         let rec = reconstruct(&t, 10 + k as u64);
         let want = true_phase(&t, PERIODS[0]);
         let (mut lit, mut valid, mut wrong, mut valid_unlit) = (0, 0, 0, 0);
-        for (i, p) in rec.pixels.data.iter().enumerate() {
+        for (i, p) in rec.pixels.iter().enumerate() {
             let ok = p.status == PixelStatus::Valid;
             if want[i].is_finite() {
                 lit += 1;
@@ -232,7 +232,6 @@ fn object_points(
     k: usize,
 ) -> (Vec<usize>, Vec<Point3<f64>>) {
     rec.pixels
-        .data
         .iter()
         .enumerate()
         .filter(|(i, p)| p.status == PixelStatus::Valid && usize::from(objects[*i]) == k)
@@ -252,7 +251,7 @@ fn object_points(
 /// for every pixel).
 fn ray_noise_limit_m(rec: &Reconstruction, i: usize, config_sigma: f64) -> f64 {
     let sensor = SensorModel::mono12();
-    let p = &rec.pixels.data[i];
+    let p = rec.pixels.get(i);
     let mean_e = f64::from(p.background) * sensor.full_well_e / sensor.gain;
     f64::from(p.sigma_m) * sensor.output_sigma(mean_e) / config_sigma
 }

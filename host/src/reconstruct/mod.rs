@@ -18,10 +18,13 @@
 //! and times them, for the bench's breakdown; both give identical results (tested).
 
 mod cloud;
+mod maps;
 mod rows;
 mod staged;
 
 use rayon::prelude::*;
+
+pub use maps::PixelMaps;
 
 use crate::calibration::{CameraModel, Head, ProjectorModel};
 use crate::phase::{PhaseError, PhaseShift, Sample};
@@ -134,7 +137,7 @@ pub enum ReconstructError {
     },
 }
 
-/// One camera pixel's result.
+/// One camera pixel's result (gathered from the maps by [`PixelMaps::get`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PixelResult {
     /// Absolute phase of the finest column period (NaN unless valid).
@@ -153,8 +156,6 @@ pub struct PixelResult {
     pub background: f32,
 }
 
-const EMPTY: PixelResult = PixelResult::masked(0.0, 0.0);
-
 impl PixelResult {
     /// A masked pixel with its measured modulation and background (no phase,
     /// no point): where every pixel's result starts.
@@ -171,11 +172,11 @@ impl PixelResult {
     }
 }
 
-/// The organised result, one [`PixelResult`] per camera pixel, plus the cloud.
-#[derive(Clone, Debug)]
+/// The organised result, one value per camera pixel in each map, plus the cloud.
+#[derive(Clone, Debug, Default)]
 pub struct Reconstruction {
     /// Per-pixel results, row-major.
-    pub pixels: Raster<PixelResult>,
+    pub pixels: PixelMaps,
     /// The valid points with colour (grey background), quality and optional normals.
     pub cloud: PointCloud,
 }
@@ -380,17 +381,12 @@ impl Reconstructor {
     ) -> Result<(), ReconstructError> {
         let (width, height) = self.check(frames_u, frames_v)?;
         let scale = self.sample_scale::<T>();
-        let pixels = &mut out.pixels;
-        (pixels.width, pixels.height) = (width, height);
         // Every element is overwritten below; memory is only allocated when it grows.
-        if pixels.data.capacity() < width * height {
-            pixels.data = crate::huge_pages::filled_vec(width * height, EMPTY);
-        } else {
-            pixels.data.resize(width * height, EMPTY);
-        }
-        let counts: Vec<usize> = pixels
-            .data
-            .par_chunks_mut(width)
+        out.pixels.resize(width, height);
+        let counts: Vec<usize> = out
+            .pixels
+            .rows_mut()
+            .into_par_iter()
             .enumerate()
             .map_init(rows::Scratch::default, |scratch, (y, row)| {
                 self.fused_row(y, frames_u, frames_v, scale, scratch, row)
@@ -401,63 +397,38 @@ impl Reconstructor {
     }
 
     /// Compacts valid pixels into a cloud (see [`cloud::compact_into`]).
-    fn cloud_into(
-        &self,
-        pixels: &Raster<PixelResult>,
-        valid_per_row: &[usize],
-        cloud: &mut PointCloud,
-    ) {
+    fn cloud_into(&self, pixels: &PixelMaps, valid_per_row: &[usize], cloud: &mut PointCloud) {
         let c = self.triangulator.camera().centre_m();
         let view = [c.x as f32, c.y as f32, c.z as f32];
-        cloud::compact_into(pixels, valid_per_row, self.config.normals, view, cloud);
-    }
-}
-
-impl Default for Reconstruction {
-    /// An empty result (0 x 0 pixels, no points) for [`Reconstructor::reconstruct_into`].
-    fn default() -> Self {
-        Self {
-            pixels: Raster {
-                width: 0,
-                height: 0,
-                data: Vec::new(),
-            },
-            cloud: PointCloud::default(),
-        }
+        let normals = self.config.normals;
+        cloud::compact_into(pixels, valid_per_row, normals, view, self.simd, cloud);
     }
 }
 
 impl Reconstruction {
     /// Depth map, metres (NaN where not valid).
     pub fn depth_m(&self) -> Raster<f32> {
-        self.map(|p| p.depth_m)
+        self.pixels.raster(&self.pixels.depth_m)
     }
 
     /// Absolute phase map (NaN where not valid).
     pub fn phase_u(&self) -> Raster<f32> {
-        self.map(|p| p.phase_u)
+        self.pixels.raster(&self.pixels.phase_u)
+    }
+
+    /// Smallest-modulation map.
+    pub fn modulation(&self) -> Raster<f32> {
+        self.pixels.raster(&self.pixels.modulation)
     }
 
     /// Status map.
     pub fn status(&self) -> Raster<PixelStatus> {
-        self.map(|p| p.status)
+        self.pixels.raster(&self.pixels.status)
     }
 
     /// Number of pixels with a status.
     pub fn count(&self, status: PixelStatus) -> usize {
-        self.pixels
-            .data
-            .iter()
-            .filter(|p| p.status == status)
-            .count()
-    }
-
-    fn map<T>(&self, f: impl Fn(&PixelResult) -> T) -> Raster<T> {
-        Raster {
-            width: self.pixels.width,
-            height: self.pixels.height,
-            data: self.pixels.data.iter().map(f).collect(),
-        }
+        self.pixels.status.iter().filter(|&&s| s == status).count()
     }
 }
 
@@ -466,6 +437,25 @@ mod tests {
     use super::*;
     use crate::calibration::PinholeModel;
     use crate::synth;
+
+    /// Every map's bits (NaNs compare equal, unlike `PartialEq` on the floats).
+    fn map_bits(r: &Reconstruction) -> Vec<u32> {
+        let m = &r.pixels;
+        let floats = [
+            &m.phase_u,
+            &m.depth_m,
+            &m.sigma_m,
+            &m.modulation,
+            &m.background,
+        ];
+        let status = m.status.iter().map(|&s| s as u32);
+        floats
+            .into_iter()
+            .chain(&m.point_m)
+            .flat_map(|v| v.iter().map(|x| x.to_bits()))
+            .chain(status)
+            .collect()
+    }
 
     fn small_rig() -> (CameraModel, ProjectorModel) {
         synth::stereo_rig(
@@ -494,7 +484,7 @@ mod tests {
         let (staged, _) = rec.reconstruct_staged(&refs).unwrap();
         assert!(fused.cloud.len() > 500, "{}", fused.cloud.len());
         assert_eq!(fused.cloud, staged.cloud);
-        assert_eq!(fused.status(), staged.status());
+        assert!(map_bits(&fused) == map_bits(&staged), "staged maps differ");
         // Reusing the buffers of another capture's result gives the same result.
         let other = synth::render_fringe_set(&truth, &[9.0, 10.0, 11.0], 4, true, &light, 8);
         let other: Vec<&Raster<f32>> = other.iter().collect();
@@ -502,7 +492,7 @@ mod tests {
         assert_ne!(reused.cloud, fused.cloud);
         rec.reconstruct_into(&refs, None, &mut reused).unwrap();
         assert_eq!(reused.cloud, fused.cloud);
-        assert_eq!(reused.pixels.data.len(), fused.pixels.data.len());
+        assert!(map_bits(&reused) == map_bits(&fused), "reused maps differ");
         assert_eq!(reused.status(), fused.status());
 
         assert!(matches!(
@@ -548,16 +538,7 @@ mod tests {
             baseline.reconstruct(&refs, None).unwrap(),
         );
         assert!(a.cloud.len() > 500, "{}", a.cloud.len());
-        // Bit for bit (NaNs included), not within a tolerance.
-        let bits = |r: &Reconstruction| -> Vec<u32> {
-            r.pixels
-                .data
-                .iter()
-                .flat_map(|p| [p.phase_u, p.point_m[0], p.point_m[2], p.depth_m, p.sigma_m])
-                .map(f32::to_bits)
-                .collect()
-        };
-        assert_eq!(bits(&a), bits(&b));
+        assert!(map_bits(&a) == map_bits(&b), "maps differ");
         assert_eq!(a.cloud, b.cloud);
     }
 
@@ -607,7 +588,7 @@ mod tests {
         let got8 = rec.reconstruct(&r8, None).unwrap();
         for (out, tol_m) in [(&got, 2e-4f32), (&got8, 3e-3)] {
             let mut compared = 0;
-            for (a, b) in out.pixels.data.iter().zip(&want.pixels.data) {
+            for (a, b) in out.pixels.iter().zip(want.pixels.iter()) {
                 if a.status == PixelStatus::Valid && b.status == PixelStatus::Valid {
                     assert!(
                         (a.depth_m - b.depth_m).abs() < tol_m,

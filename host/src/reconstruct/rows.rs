@@ -6,6 +6,7 @@
 //! cache; [`super::Reconstructor::reconstruct_staged`] runs each over the whole image
 //! for the bench's breakdown. Both call these functions, so they agree bit for bit.
 
+use super::maps::RowMut;
 use super::{PixelResult, Reconstructor};
 use crate::phase::Sample;
 use crate::simd::simd_run;
@@ -104,22 +105,23 @@ impl Reconstructor {
         v: Option<&Decoded>,
         scratch_column: &mut Vec<f32>,
         hits: &mut ColumnHits,
-        out: &mut [PixelResult],
+        out: RowMut<'_>,
     ) -> usize {
         if let Some(v) = v {
             return self.finish_row_two_rays(first_index, u, v, out);
         }
-        let width = out.len();
+        let width = out.status.len();
         let p0 = self.config.periods_px[0] as f32;
         let tau = std::f32::consts::TAU;
         let extent = self.triangulator.projector().width_px as f32 - 0.5;
-        // Projector column per pixel; NaN where there is nothing to triangulate.
+        let (min_mod, min_reliable) = (self.config.min_modulation, self.min_reliable_modulation);
+        // Projector column per pixel; NaN where there is nothing to triangulate, so a
+        // pixel has a point exactly when it is valid.
         scratch_column.clear();
         scratch_column.extend((0..width).map(|x| {
             let c = u.absolute[x] * p0 / tau;
-            let usable = u.min_modulation[x] >= self.min_reliable_modulation
-                && u.min_modulation[x] >= self.config.min_modulation;
-            if usable && c >= -0.5 && c <= extent {
+            let b = u.min_modulation[x];
+            if b >= min_reliable && b >= min_mod && c >= -0.5 && c <= extent {
                 c
             } else {
                 f32::NAN
@@ -129,25 +131,52 @@ impl Reconstructor {
             .intersect_columns(first_index, scratch_column, hits);
         // CRB phase noise of the finest period -> projector pixels, times metres per pixel.
         let sigma_px_times_b = self.noise_times_crb * p0 / tau;
+        // Every slice cut to the row's length, so the loop has no bounds checks and
+        // vectorises (selects only: the status is one of three constants).
+        let (b_min, absolute) = (&u.min_modulation[..width], &u.absolute[..width]);
+        let (b0, background) = (&u.modulation[..width], &u.background[..width]);
+        let [hx, hy, hz] = &hits.point_m;
+        let (hx, hy, hz) = (&hx[..width], &hy[..width], &hz[..width]);
+        let (depth, range_per_px) = (&hits.depth_m[..width], &hits.range_per_px[..width]);
+        let RowMut {
+            status,
+            phase_u,
+            point_m: [px, py, pz],
+            depth_m,
+            sigma_m,
+            modulation,
+            background: out_background,
+        } = out;
+        let (status, phase_u, depth_m, sigma_m) = (
+            &mut status[..width],
+            &mut phase_u[..width],
+            &mut depth_m[..width],
+            &mut sigma_m[..width],
+        );
+        let (px, py, pz) = (&mut px[..width], &mut py[..width], &mut pz[..width]);
+        let (modulation, out_background) = (&mut modulation[..width], &mut out_background[..width]);
         let mut valid = 0;
-        for (x, o) in out.iter_mut().enumerate() {
-            let mut r = PixelResult::masked(u.min_modulation[x], u.background[x]);
-            match self.direction_phase(u, x) {
-                Err(s) => r.status = s,
-                Ok(phase) => {
-                    r.phase_u = phase;
-                    r.status = PixelStatus::Unreliable;
-                    if !hits.depth_m[x].is_nan() {
-                        r.point_m = [hits.point_m[0][x], hits.point_m[1][x], hits.point_m[2][x]];
-                        r.depth_m = hits.depth_m[x];
-                        let b0 = u.modulation[x];
-                        r.sigma_m = hits.range_per_px[x] * (sigma_px_times_b / b0);
-                        r.status = PixelStatus::Valid;
-                        valid += 1;
-                    }
-                }
-            }
-            *o = r;
+        for x in 0..width {
+            let b = b_min[x];
+            // As `direction_phase`: NaN modulation fails both comparisons.
+            let usable = b >= min_mod;
+            let reliable = usable & (b >= min_reliable);
+            let hit = !depth[x].is_nan();
+            status[x] = if hit {
+                PixelStatus::Valid
+            } else if usable {
+                PixelStatus::Unreliable
+            } else {
+                PixelStatus::Masked
+            };
+            phase_u[x] = if reliable { absolute[x] } else { f32::NAN };
+            (px[x], py[x], pz[x]) = (hx[x], hy[x], hz[x]);
+            depth_m[x] = depth[x];
+            // NaN without a point (`range_per_px` is NaN there).
+            sigma_m[x] = range_per_px[x] * (sigma_px_times_b / b0[x]);
+            modulation[x] = b;
+            out_background[x] = background[x];
+            valid += usize::from(hit);
         }
         valid
     }
@@ -158,10 +187,10 @@ impl Reconstructor {
         first_index: usize,
         u: &Decoded,
         v: &Decoded,
-        out: &mut [PixelResult],
+        mut out: RowMut<'_>,
     ) -> usize {
         let mut valid = 0;
-        for (x, o) in out.iter_mut().enumerate() {
+        for x in 0..out.status.len() {
             let mut r = PixelResult::masked(
                 u.min_modulation[x].min(v.min_modulation[x]),
                 u.background[x],
@@ -173,7 +202,7 @@ impl Reconstructor {
                 (Err(s), _) | (_, Err(s)) => r.status = s,
             }
             valid += usize::from(r.status == PixelStatus::Valid);
-            *o = r;
+            out.set(x, &r);
         }
         valid
     }
@@ -188,9 +217,9 @@ impl Reconstructor {
         frames_v: Option<&[&crate::raster::Raster<T>]>,
         scale: f32,
         scratch: &mut Scratch,
-        out: &mut [PixelResult],
+        out: RowMut<'_>,
     ) -> usize {
-        let width = out.len();
+        let width = out.status.len();
         let span = y * width..(y + 1) * width;
         let rows: Vec<&[T]> = frames_u.iter().map(|f| &f.data[span.clone()]).collect();
         let simd = self.simd;

@@ -6,7 +6,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::rows::Decoded;
-use super::{Directions, ReconstructError, Reconstruction, Reconstructor, StageTimes, EMPTY};
+use super::{Directions, PixelMaps, ReconstructError, Reconstruction, Reconstructor, StageTimes};
 use crate::phase::Sample;
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
@@ -50,9 +50,11 @@ impl Reconstructor {
         times.unwrap_s = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
-        let mut pixels = vec![EMPTY; width * height];
+        let mut pixels = PixelMaps::default();
+        pixels.resize(width, height);
         let counts: Vec<usize> = pixels
-            .par_chunks_mut(width)
+            .rows_mut()
+            .into_par_iter()
             .zip(&decoded)
             .enumerate()
             .map_init(
@@ -68,11 +70,6 @@ impl Reconstructor {
         times.triangulate_s = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
-        let pixels = Raster {
-            width,
-            height,
-            data: pixels,
-        };
         let mut cloud = PointCloud::default();
         self.cloud_into(&pixels, &counts, &mut cloud);
         times.cloud_s = t.elapsed().as_secs_f64();

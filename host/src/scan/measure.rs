@@ -143,7 +143,6 @@ pub fn measure(
 pub fn predicted_rms_m(recon: &Reconstruction) -> f64 {
     let (n, sum) = recon
         .pixels
-        .data
         .iter()
         .filter(|px| px.status == PixelStatus::Valid && px.sigma_m.is_finite())
         .fold((0usize, 0.0f64), |(n, s), px| {
@@ -163,7 +162,6 @@ fn error_map(
 ) -> Raster<f32> {
     let data = recon
         .pixels
-        .data
         .iter()
         .zip(&truth.point_m)
         .map(|(px, t)| {

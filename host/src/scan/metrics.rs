@@ -87,7 +87,6 @@ pub fn pixel_accuracy(
 ) -> PixelAccuracy {
     let mut errors: Vec<f64> = recon
         .pixels
-        .data
         .par_iter()
         .zip(&truth.point_m)
         .filter(|(px, t)| px.status == PixelStatus::Valid && t[0].is_finite())
@@ -95,7 +94,6 @@ pub fn pixel_accuracy(
         .collect();
     let sigmas: Vec<f64> = recon
         .pixels
-        .data
         .iter()
         .filter(|px| px.status == PixelStatus::Valid && px.sigma_m.is_finite())
         .map(|px| px.sigma_m as f64)
@@ -103,7 +101,7 @@ pub fn pixel_accuracy(
     let lit = own_object_pixels(truth, projector, is_object);
     let own_valid = lit
         .iter()
-        .zip(&recon.pixels.data)
+        .zip(recon.pixels.iter())
         .filter(|(l, px)| **l && px.status == PixelStatus::Valid)
         .count();
     let lit_count = lit.iter().filter(|&&l| l).count();
@@ -144,7 +142,6 @@ pub fn masked_accuracy(
 ) -> MaskedAccuracy {
     let errors: Vec<f64> = recon
         .pixels
-        .data
         .iter()
         .zip(&truth.point_m)
         .zip(mask)

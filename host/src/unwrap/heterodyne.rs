@@ -190,11 +190,13 @@ impl Heterodyne {
         assert_eq!(wrapped.len(), k * len, "one wrapped row per period");
         let tau = std::f32::consts::TAU;
         let max_residual = self.max_residual_rad;
+        // Zeroed once per row, not per tile (4 KiB each: zeroing them per tile cost as much
+        // as a tenth of the unwrap); each tile overwrites the first `k` entries it reads.
+        let mut level = [[0.0f32; TILE]; MAX_PERIODS];
+        let mut chain = [[0.0f32; TILE]; MAX_PERIODS];
         let mut x0 = 0;
         while x0 < len {
             let n = TILE.min(len - x0);
-            let mut level = [[0.0f32; TILE]; MAX_PERIODS];
-            let mut chain = [[0.0f32; TILE]; MAX_PERIODS];
             for p in 0..k {
                 level[p][..n].copy_from_slice(&wrapped[p * len + x0..p * len + x0 + n]);
             }

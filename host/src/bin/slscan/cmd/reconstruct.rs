@@ -110,11 +110,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &normalise_for_view(&out.phase_u()),
             true,
         )?;
-        let modulation = Raster {
-            width: out.pixels.width,
-            height: out.pixels.height,
-            data: out.pixels.data.iter().map(|p| p.modulation).collect(),
-        };
+        let modulation = out.modulation();
         save_gray_png(
             &dir.join("modulation.png"),
             &normalise_for_view(&modulation),
