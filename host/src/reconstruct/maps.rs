@@ -110,7 +110,7 @@ impl PixelMaps {
     }
 
     /// Sizes every map for `width x height` (contents unspecified: the row pass writes
-    /// every element). Memory is only allocated where a map grows, then on huge pages.
+    /// every element). Memory is only allocated where a map grows (see [`sized`]).
     pub(super) fn resize(&mut self, width: usize, height: usize) {
         let len = width * height;
         (self.width, self.height) = (width, height);
@@ -122,7 +122,7 @@ impl PixelMaps {
             &mut self.modulation,
             &mut self.background,
         ]) {
-            sized(map, len, f32::NAN);
+            sized(map, len, 0.0);
         }
     }
 
@@ -158,11 +158,13 @@ impl PixelMaps {
 }
 
 /// Resizes `v` to `len` elements: in place when its allocation is large enough, else a
-/// fresh one advised for huge pages.
-pub(super) fn sized<T: Clone>(v: &mut Vec<T>, len: usize, fill: T) {
+/// fresh one on huge pages, filled in parallel (see [`crate::huge_pages::filled_vec`]).
+pub(super) fn sized<T: Clone + Send + Sync>(v: &mut Vec<T>, len: usize, fill: T) {
     if v.capacity() >= len {
         v.resize(len, fill);
     } else {
+        // Free the old allocation first: a scan's buffers are hundreds of MB.
+        *v = Vec::new();
         *v = crate::huge_pages::filled_vec(len, fill);
     }
 }

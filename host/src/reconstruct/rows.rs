@@ -115,11 +115,12 @@ impl Reconstructor {
         let tau = std::f32::consts::TAU;
         let extent = self.triangulator.projector().width_px as f32 - 0.5;
         let (min_mod, min_reliable) = (self.config.min_modulation, self.min_reliable_modulation);
+        let px_per_rad = p0 / tau;
         // Projector column per pixel; NaN where there is nothing to triangulate, so a
         // pixel has a point exactly when it is valid.
         scratch_column.clear();
         scratch_column.extend((0..width).map(|x| {
-            let c = u.absolute[x] * p0 / tau;
+            let c = u.absolute[x] * px_per_rad;
             let b = u.min_modulation[x];
             if b >= min_reliable && b >= min_mod && c >= -0.5 && c <= extent {
                 c
