@@ -1,29 +1,27 @@
 //! The full pipeline at seed 000's camera size: 3 periods x 4 steps = 12 frames of
 //! 3072x2048 -> wrapped phase -> heterodyne -> triangulation -> point cloud with normals.
 //!
-//! Prints a table for 1 and 2 rayon threads and two input types: `u16 (12-bit)` (what a
-//! machine-vision camera delivers; `ReconstructConfig::full_scale = 4095`) and `f32`
-//! (the same frames as floats in [0, 1]), and u16 through a projector model with lens
-//! distortion (triangulation then adds a first-order start and 2 vectorised Newton steps on
-//! the depth). Columns: the fused pass into a fresh result
-//! (`reconstruct`), the fused pass into a reused result (`reconstruct_into`, no fresh
-//! memory), and the staged passes with their per-stage wall times. Frames come from the
+//! Prints a table for 1 and 2 rayon threads and several inputs: `u16 (12-bit)` (what a
+//! machine-vision camera delivers; `ReconstructConfig::full_scale = 4095`), `f32` (the
+//! same frames as floats in [0, 1]), u16 through a projector model with lens distortion
+//! (triangulation then adds a first-order start and 2 vectorised Newton steps on the
+//! depth), and that again with the row loops' baseline x86-64 (SSE2) build instead of the
+//! AVX2 one the CPU gets at run time (`slscan::simd`). Columns: the fused pass into a
+//! fresh result (`reconstruct`), the fused pass into a reused result (`reconstruct_into`,
+//! no fresh memory), and the staged passes with their per-stage wall times (these
+//! allocate per stage, so they add up to more than the fused pass). Frames come from the
 //! formula-based renderer (`slscan::synth`): a plane with the two calibration spheres,
 //! projector covering the view. Run:
-//! `SLSCAN_BENCH_RUNS=5 cargo bench -p slscan --bench pipeline`.
+//! `SLSCAN_BENCH_RUNS=7 cargo bench -p slscan --bench pipeline`.
 //!
-//! On the shared 2-core development machine (loaded, so CPU ms is the stable figure and
-//! CPU / 2 the 2-core estimate), u16 input: fused ~270 ms CPU fresh, ~225 ms reused
-//! (was ~760 ms before the row-vectorised stages). perf on the reused pass: decode ~1/3,
-//! heterodyne ~15 %, triangulation + per-pixel result ~20 %, cloud + normals ~25 %. A
-//! fresh result adds the kernel's clearing of ~400 MB (huge pages; ~50 ms, far more
-//! when other processes contend for memory).
-//!
-//! Distorted projector (k1 0.02, k2 -0.005, p1 2e-4, p2 -1e-4, what calibrated heads
-//! have), u16, 2 threads on a lightly loaded machine: fused 199 ms wall / 350 ms CPU
-//! (ideal projector 157 / 267), reused 164 / 311 (113 / 223), staged triangulation 165 ms
-//! (120); ~80 ms CPU more than the ideal projector (4 plain Newton steps: ~120 ms); was 1117 ms wall fused / 791 ms reused / 793 ms triangulation (idle
-//! machine, 2 threads) when it fell back to the per-pixel fixed-point path.
+//! On the idle 2-core development machine (AMD EPYC, AVX2), 2 threads, u16 input: ideal
+//! projector ~94 ms fresh / ~65 ms reused; distorted projector (k1 0.02, k2 -0.005, p1
+//! 2e-4, p2 -1e-4, what calibrated heads have) ~112 ms fresh / ~86 ms reused (CPU ~220 /
+//! ~170 ms); the SSE2 build of the same ~170-205 / ~140 ms. Session 2 ended at 157 / 113
+//! (ideal) and 199 / 164 ms (distorted); session 1 at ~380 ms. perf on the reused
+//! distorted pass: triangulation (Newton steps) ~29 %, phase decode (atan2) ~23 %, cloud
+//! and normals ~19 %, per-pixel maps ~13 %, heterodyne ~6 %. A fresh result adds the
+//! kernel's clearing of ~390 MB (huge pages, filled by both threads; ~25-45 ms).
 
 use std::time::Instant;
 
