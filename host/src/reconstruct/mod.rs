@@ -158,7 +158,7 @@ pub struct PixelResult {
 
 impl PixelResult {
     /// A masked pixel with its measured modulation and background (no phase,
-    /// no point): where every pixel's result starts.
+    /// no point): where the two-ray row pass starts each pixel.
     pub const fn masked(modulation: f32, background: f32) -> Self {
         PixelResult {
             phase_u: f32::NAN,
