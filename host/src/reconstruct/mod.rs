@@ -438,6 +438,25 @@ mod tests {
     use crate::calibration::PinholeModel;
     use crate::synth;
 
+    /// Fringe periods of the small rig's frames, projector pixels.
+    const PERIODS: [f64; 3] = [9.0, 10.0, 11.0];
+
+    /// The two calibration spheres seen by the small rig in 4-step column fringes of
+    /// [`PERIODS`], noise seeded by `seed`.
+    fn sphere_frames(
+        camera: &CameraModel,
+        projector: &ProjectorModel,
+        seed: u64,
+    ) -> Vec<Raster<f32>> {
+        let truth = synth::trace(&synth::two_spheres(0.5, 0.6), camera, projector);
+        let light = synth::Lighting {
+            ambient: 0.1,
+            gain: 0.7,
+            noise_sigma: 0.005,
+        };
+        synth::render_fringe_set(&truth, &PERIODS, 4, true, &light, seed)
+    }
+
     /// Every map's bits (NaNs compare equal, unlike `PartialEq` on the floats).
     fn map_bits(r: &Reconstruction) -> Vec<u32> {
         let m = &r.pixels;
@@ -469,24 +488,17 @@ mod tests {
     #[test]
     fn fused_and_staged_agree_and_errors_are_typed() {
         let (camera, projector) = small_rig();
-        let scene = synth::two_spheres(0.5, 0.6);
-        let truth = synth::trace(&scene, &camera, &projector);
-        let light = synth::Lighting {
-            ambient: 0.1,
-            gain: 0.7,
-            noise_sigma: 0.005,
-        };
-        let periods = vec![9.0, 10.0, 11.0];
-        let frames = synth::render_fringe_set(&truth, &periods, 4, true, &light, 7);
+        let frames = sphere_frames(&camera, &projector, 7);
         let refs: Vec<&Raster<f32>> = frames.iter().collect();
-        let rec = Reconstructor::new(&camera, &projector, ReconstructConfig::new(periods)).unwrap();
+        let rec = Reconstructor::new(&camera, &projector, ReconstructConfig::new(PERIODS.into()))
+            .unwrap();
         let fused = rec.reconstruct(&refs, None).unwrap();
         let (staged, _) = rec.reconstruct_staged(&refs).unwrap();
         assert!(fused.cloud.len() > 500, "{}", fused.cloud.len());
         assert_eq!(fused.cloud, staged.cloud);
         assert!(map_bits(&fused) == map_bits(&staged), "staged maps differ");
         // Reusing the buffers of another capture's result gives the same result.
-        let other = synth::render_fringe_set(&truth, &[9.0, 10.0, 11.0], 4, true, &light, 8);
+        let other = sphere_frames(&camera, &projector, 8);
         let other: Vec<&Raster<f32>> = other.iter().collect();
         let mut reused = rec.reconstruct(&other, None).unwrap();
         assert_ne!(reused.cloud, fused.cloud);
@@ -521,16 +533,10 @@ mod tests {
         let (camera, mut projector) = small_rig();
         projector.distortion.k1 = 0.03;
         projector.distortion.p1 = 3e-4;
-        let truth = synth::trace(&synth::two_spheres(0.5, 0.6), &camera, &projector);
-        let light = synth::Lighting {
-            ambient: 0.1,
-            gain: 0.7,
-            noise_sigma: 0.005,
-        };
-        let periods = vec![9.0, 10.0, 11.0];
-        let frames = synth::render_fringe_set(&truth, &periods, 4, true, &light, 3);
+        let frames = sphere_frames(&camera, &projector, 3);
         let refs: Vec<&Raster<f32>> = frames.iter().collect();
-        let rec = Reconstructor::new(&camera, &projector, ReconstructConfig::new(periods)).unwrap();
+        let rec = Reconstructor::new(&camera, &projector, ReconstructConfig::new(PERIODS.into()))
+            .unwrap();
         let best = rec.clone().with_simd(Simd::best());
         let baseline = rec.with_simd(Simd::Baseline);
         let (a, b) = (
@@ -545,16 +551,9 @@ mod tests {
     #[test]
     fn integer_frames_give_the_float_result() {
         let (camera, projector) = small_rig();
-        let truth = synth::trace(&synth::two_spheres(0.5, 0.6), &camera, &projector);
-        let light = synth::Lighting {
-            ambient: 0.1,
-            gain: 0.7,
-            noise_sigma: 0.005,
-        };
-        let periods = vec![9.0, 10.0, 11.0];
-        let frames = synth::render_fringe_set(&truth, &periods, 4, true, &light, 7);
+        let frames = sphere_frames(&camera, &projector, 7);
         let refs: Vec<&Raster<f32>> = frames.iter().collect();
-        let config = ReconstructConfig::new(periods);
+        let config = ReconstructConfig::new(PERIODS.into());
         let rec = Reconstructor::new(&camera, &projector, config.clone()).unwrap();
         let want = rec.reconstruct(&refs, None).unwrap();
         // 12-bit samples in u16 words, and 8-bit ones, quantised from the same frames.
