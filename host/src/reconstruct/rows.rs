@@ -174,7 +174,8 @@ impl Reconstructor {
             (px[x], py[x], pz[x]) = (hx[x], hy[x], hz[x]);
             depth_m[x] = depth[x];
             // NaN without a point (`range_per_px` is NaN there).
-            sigma_m[x] = range_per_px[x] * (sigma_px_times_b / b0[x]);
+            let sigma_px = sigma_px_times_b * self.noise_scale(background[x]) / b0[x];
+            sigma_m[x] = range_per_px[x] * sigma_px;
             modulation[x] = b;
             out_background[x] = background[x];
             valid += usize::from(hit);

@@ -85,6 +85,10 @@ pub struct ScanConfig {
     /// Camera noise at half scale, frame units (what the reconstruction's
     /// noise prediction and order checks assume).
     pub noise_sigma: f32,
+    /// Share of that noise's variance that is shot noise (see
+    /// [`ReconstructConfig::shot_noise_share`]): each point's predicted
+    /// sigma then follows its pixel's own level.
+    pub shot_noise_share: f32,
     /// Seed of device jitter and sensor noise.
     pub seed: u64,
     /// Simulated board faults (for failure tests).
@@ -115,6 +119,7 @@ impl ScanConfig {
             periods_px: default_periods_px(1280),
             steps: 4,
             noise_sigma: noise_sigma(&sim_sensor()),
+            shot_noise_share: shot_noise_share(&sim_sensor()),
             seed: 1,
             board: SimBoardConfig::default(),
             client: ClientConfig {
@@ -150,6 +155,13 @@ pub fn sim_sensor() -> SensorModel {
 pub fn noise_sigma(sensor: &SensorModel) -> f32 {
     let half_e = 0.5 * sensor.full_well_e;
     ((half_e + sensor.read_noise_e.powi(2)).sqrt() / sensor.full_well_e) as f32
+}
+
+/// The share of [`noise_sigma`]'s variance that is shot noise (the rest is
+/// read noise): what [`ReconstructConfig::shot_noise_share`] wants.
+pub fn shot_noise_share(sensor: &SensorModel) -> f32 {
+    let half_e = 0.5 * sensor.full_well_e;
+    (half_e / (half_e + sensor.read_noise_e.powi(2))) as f32
 }
 
 /// What can stop a scan.
@@ -470,6 +482,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         let mut rc_config = ReconstructConfig::new(config.periods_px.clone());
         rc_config.steps = captured.steps;
         rc_config.noise_sigma = config.noise_sigma * captured.noise_factor;
+        rc_config.shot_noise_share = config.shot_noise_share;
         let rc = Reconstructor::from_head(&calibration.heads[h], rc_config).map_err(|source| {
             ScanError::Reconstruct {
                 head: head_name,

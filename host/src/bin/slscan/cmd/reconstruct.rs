@@ -40,9 +40,15 @@ pub struct Args {
     /// Smallest usable modulation (frame units, 0..1).
     #[arg(long, default_value_t = 0.05)]
     min_modulation: f32,
-    /// Intensity noise sigma of the camera (frame units) for the quality estimate.
+    /// Intensity noise sigma of the camera at half scale (frame units) for the
+    /// quality estimate and the fringe-order checks.
     #[arg(long, default_value_t = 0.01)]
     noise_sigma: f32,
+    /// Share of that noise's variance that is shot noise, 0..1 (then each point's
+    /// quality follows its pixel's level; a camera with full well W and read noise r
+    /// electrons has (W/2) / (W/2 + r^2)). 0 gives every pixel the half-scale noise.
+    #[arg(long, default_value_t = 0.0)]
+    shot_noise_share: f32,
     /// Saturated share tolerated per frame, percent.
     #[arg(long, default_value_t = 5.0)]
     max_saturated_percent: f64,
@@ -67,6 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     config.steps = args.steps;
     config.min_modulation = args.min_modulation;
     config.noise_sigma = args.noise_sigma;
+    config.shot_noise_share = args.shot_noise_share;
     config.directions = if args.both {
         Directions::Both
     } else {

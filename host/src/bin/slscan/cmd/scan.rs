@@ -86,6 +86,12 @@ pub struct Args {
     /// the reconstruction's noise prediction and fringe-order checks).
     #[arg(long, default_value_t = 0.01)]
     noise_sigma: f32,
+    /// Hardware: share of that noise's variance that is shot noise, 0..1
+    /// (then each point's predicted sigma follows its pixel's level; a camera
+    /// with full well W and read noise r electrons has (W/2) / (W/2 + r^2)).
+    /// 0 gives every pixel the half-scale noise.
+    #[arg(long, default_value_t = 0.0)]
+    shot_noise_share: f32,
     /// The simulated projectors' response: intensity = grey^gamma
     /// (1 = DMD pattern mode; about 2.2 through a video input).
     #[arg(long, default_value_t = 1.0)]
@@ -264,6 +270,7 @@ fn hardware_config(
         .clone()
         .unwrap_or_else(|| default_periods_px(dmd.0));
     config.noise_sigma = args.noise_sigma;
+    config.shot_noise_share = args.shot_noise_share;
     config.precompensate_gamma = args.precompensate_gamma;
     Ok(config)
 }
