@@ -43,8 +43,47 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("slscan: error: {err:#}");
+            eprintln!("slscan: error: {}", error_chain(&err));
             std::process::ExitCode::from(1)
         }
+    }
+}
+
+/// The error and its causes as "a: b: c", leaving out a cause whose text the message
+/// before it already ends with (many errors print their source inline as well).
+fn error_chain(err: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if out.ends_with(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cause_printed_inline_is_not_repeated() {
+        #[derive(Debug, thiserror::Error)]
+        #[error("rig file x.json: {source}")]
+        struct Inline {
+            source: std::io::Error,
+        }
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        let err = anyhow::Error::new(Inline { source: io }).context("writing x.json");
+        assert_eq!(
+            error_chain(&err),
+            "writing x.json: rig file x.json: no such file"
+        );
+        let plain = anyhow::anyhow!("inner").context("outer");
+        assert_eq!(error_chain(&plain), "outer: inner");
     }
 }

@@ -139,6 +139,12 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 
 /// Runs `slscan calibrate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Make the output's folder first: finding it missing after minutes of rendering and
+    // solving would lose the work.
+    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
+    }
     let mut options = HeadOptions::default();
     options.camera = CameraCalibrationOptions {
         fix_k3: !args.with_k3,
