@@ -201,15 +201,28 @@ pub fn check_exposure(
     Ok(())
 }
 
-/// Loads a set of frames, checking sizes, bit depths and exposure.
+/// Loads a set of frames, checking sizes, bit depths and exposure. Frames are decoded
+/// in parallel (decoding is most of the time); the checks then run in path order, so
+/// an error names the first bad frame as a one-by-one load would.
 pub fn load_set(
     paths: &[PathBuf],
     limits: &ExposureLimits,
 ) -> Result<Vec<Raster<f32>>, ImageError> {
+    use rayon::prelude::*;
+    // Per frame: the decoded frame and its exposure verdict, or why it did not decode.
+    type Loaded = Result<(Frame, Result<(), ImageError>), ImageError>;
+    let loaded: Vec<Loaded> = paths
+        .par_iter()
+        .map(|path| {
+            let frame = load_gray(path)?;
+            let exposure = check_exposure(path, &frame.image, limits);
+            Ok((frame, exposure))
+        })
+        .collect();
     let mut out: Vec<Raster<f32>> = Vec::with_capacity(paths.len());
     let mut first: Option<((usize, usize), u8)> = None;
-    for path in paths {
-        let frame = load_gray(path)?;
+    for (path, loaded) in paths.iter().zip(loaded) {
+        let (frame, exposure) = loaded?;
         let size = frame.image.size();
         match first {
             None => first = Some((size, frame.bit_depth)),
@@ -229,7 +242,7 @@ pub fn load_set(
             }
             Some(_) => {}
         }
-        check_exposure(path, &frame.image, limits)?;
+        exposure?;
         out.push(frame.image);
     }
     Ok(out)

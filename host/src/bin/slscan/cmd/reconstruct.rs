@@ -4,6 +4,7 @@
 //! next period (`--periods`), columns first; with `--both`, the same again for rows.
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use anyhow::Context;
 use slscan::calibration::read_rig;
@@ -94,11 +95,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_saturated_percent: args.max_saturated_percent,
         ..ExposureLimits::default()
     };
+    let clock = Instant::now();
     let frames = load_set(&paths, &limits)?;
+    tracing::info!(
+        stage = "load",
+        frames = frames.len(),
+        ms = ms_since(clock),
+        "stage done"
+    );
     let refs: Vec<&Raster<f32>> = frames.iter().collect();
+    let clock = Instant::now();
     let rec = Reconstructor::from_head(head, config)?;
     let (u, v) = refs.split_at(per_direction);
     let out = rec.reconstruct(u, args.both.then_some(v))?;
+    tracing::info!(stage = "reconstruct", ms = ms_since(clock), "stage done");
     anyhow::ensure!(
         !out.cloud.is_empty(),
         "no valid points: {} masked (modulation < {}), {} unreliable of {} pixels",
@@ -107,7 +117,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out.count(PixelStatus::Unreliable),
         out.pixels.len()
     );
+    let clock = Instant::now();
     write_ply(&args.out, &out.cloud)?;
+    tracing::info!(stage = "write", ms = ms_since(clock), "stage done");
     if let Some(dir) = &args.pictures {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let depth = out.depth_m();
@@ -135,4 +147,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out.count(PixelStatus::Unreliable)
     );
     Ok(())
+}
+
+/// Whole milliseconds since `start`, for the stage log.
+fn ms_since(start: Instant) -> u128 {
+    start.elapsed().as_millis()
 }
