@@ -3,11 +3,11 @@
 //! The build targets baseline x86-64 (SSE2: 4 f32 lanes) so that one binary runs on any
 //! x86-64 machine. The row loops of the pipeline are written to vectorise; compiled a
 //! second time inside an AVX2 function (everything they call inlined into it) they use 8
-//! lanes, which on the bench's 6 MP capture is ~1.4x faster. Rust does not contract
+//! lanes, which on the bench's 6 MP capture is ~1.5x faster. Rust does not contract
 //! `a * b + c` into FMA, and the loops do no reductions, so both builds give the same
 //! bits (tested in `reconstruct`).
 
-/// Which build of a row loop [`Simd::run`] uses.
+/// Which build of the pipeline's row loops runs (`simd_run!` in this crate).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Simd {
     /// Baseline x86-64 (or whatever the target is): SSE2 on x86-64.
@@ -26,7 +26,7 @@ impl Simd {
         }
     }
 
-    /// Whether [`simd_run!`] takes the AVX2 build: `Avx2` on a CPU without AVX2 falls
+    /// Whether `simd_run!` takes the AVX2 build: `Avx2` on a CPU without AVX2 falls
     /// back to the baseline, so no value of `self` is unsafe.
     #[inline]
     pub fn uses_avx2(self) -> bool {
@@ -34,10 +34,10 @@ impl Simd {
     }
 }
 
-/// Evaluates `$body` built for `$simd` (a [`Simd`]): once as written, once in a closure
-/// compiled with AVX2. Each copy has one call site, so LLVM inlines the closure (and the
-/// `#[inline(always)]` functions the body calls) into the AVX2 function; a closure called
-/// from both branches would be too large to inline twice and stay baseline.
+/// Evaluates `$body` built for `$simd` (a [`Simd`]): once as written, once in an
+/// `#[inline(always)]` closure handed to the AVX2 function, so that the closure, and the
+/// `#[inline(always)]` functions the body calls, are compiled inside it. (Without the
+/// attribute LLVM left large closures out of line, compiled for the baseline.)
 macro_rules! simd_run {
     ($simd:expr, $body:expr) => {
         if $simd.uses_avx2() {

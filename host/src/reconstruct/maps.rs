@@ -126,7 +126,7 @@ impl PixelMaps {
         }
     }
 
-    /// Every row of every map, for the row pass (`width` must be the maps' width).
+    /// Every row of every map, for the row pass (after [`PixelMaps::resize`]).
     pub(super) fn rows_mut(&mut self) -> Vec<RowMut<'_>> {
         let w = self.width.max(1);
         let [px, py, pz] = &mut self.point_m;

@@ -14,7 +14,7 @@
 
 use crate::raster::Raster;
 
-/// Thresholds of [`aliased_mask`].
+/// Thresholds of [`unusable_mask`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AliasParams {
     /// Least share of the pixel's brighter flat-field signal (above dark)
