@@ -22,6 +22,11 @@
 //! distorted pass: triangulation (Newton steps) ~29 %, phase decode (atan2) ~23 %, cloud
 //! and normals ~19 %, per-pixel maps ~13 %, heterodyne ~6 %. A fresh result adds the
 //! kernel's clearing of ~390 MB (huge pages, filled by both threads; ~25-45 ms).
+//!
+//! A last line times both directions (24 f32 frames, two-ray triangulation, 2 threads):
+//! ~274 ms fresh / ~222 ms reused. The per-pixel f64 two-ray path it replaced took ~343
+//! ms fresh (and ~440 against ~230 ms now with a distorted projector, measured once with
+//! a throwaway harness).
 
 use std::time::Instant;
 
@@ -141,6 +146,51 @@ fn main() {
             }
         });
     }
+    both_directions(&camera, &projector, &truth, &periods, &light, runs);
+}
+
+/// Columns and rows (24 f32 frames, two-ray triangulation), 2 threads: fused pass into
+/// a fresh and a reused result, one line.
+fn both_directions(
+    camera: &PinholeModel,
+    projector: &PinholeModel,
+    truth: &synth::GroundTruth,
+    periods: &[f64],
+    light: &Lighting,
+    runs: usize,
+) {
+    let columns = synth::render_fringe_set(truth, periods, 4, true, light, 1);
+    let rows = synth::render_fringe_set(truth, periods, 4, false, light, 2);
+    let (cu, cv): (Vec<&Raster<f32>>, Vec<&Raster<f32>>) =
+        (columns.iter().collect(), rows.iter().collect());
+    let mut config = ReconstructConfig::new(periods.to_vec());
+    config.directions = slscan::reconstruct::Directions::Both;
+    let rec = Reconstructor::new(camera, projector, config).expect("set-up");
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool");
+    let (fresh, reused) = pool.install(|| {
+        let mut fresh = Vec::new();
+        for _ in 0..runs {
+            let t = Instant::now();
+            let out = rec.reconstruct(&cu, Some(&cv)).expect("reconstruct");
+            fresh.push(t.elapsed().as_secs_f64() * 1e3);
+            drop(out);
+        }
+        let mut out = rec.reconstruct(&cu, Some(&cv)).expect("reconstruct");
+        let mut reused = Vec::new();
+        for _ in 0..runs {
+            let t = Instant::now();
+            rec.reconstruct_into(&cu, Some(&cv), &mut out)
+                .expect("reconstruct");
+            reused.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        (median(fresh), median(reused))
+    });
+    println!(
+        "both directions (24 f32 frames, two-ray triangulation), 2 threads: {fresh:.1} ms fresh, {reused:.1} ms reused"
+    );
 }
 
 /// 12-bit camera data: full white.

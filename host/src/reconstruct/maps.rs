@@ -43,21 +43,6 @@ pub(super) struct RowMut<'a> {
     pub background: &'a mut [f32],
 }
 
-impl RowMut<'_> {
-    /// Writes one pixel's result.
-    pub fn set(&mut self, x: usize, r: &PixelResult) {
-        self.status[x] = r.status;
-        self.phase_u[x] = r.phase_u;
-        for (map, &v) in self.point_m.iter_mut().zip(&r.point_m) {
-            map[x] = v;
-        }
-        self.depth_m[x] = r.depth_m;
-        self.sigma_m[x] = r.sigma_m;
-        self.modulation[x] = r.modulation;
-        self.background[x] = r.background;
-    }
-}
-
 impl PixelMaps {
     /// Number of pixels.
     pub fn len(&self) -> usize {

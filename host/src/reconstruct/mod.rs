@@ -31,7 +31,7 @@ use crate::phase::{PhaseError, PhaseShift, Sample};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::simd::Simd;
-use crate::triangulation::{ProjectorAxis, Triangulator};
+use crate::triangulation::Triangulator;
 use crate::unwrap::heterodyne::Heterodyne;
 use crate::unwrap::{PixelStatus, UnwrapError};
 
@@ -166,22 +166,6 @@ pub struct PixelResult {
     pub modulation: f32,
     /// Background A of the finest column period.
     pub background: f32,
-}
-
-impl PixelResult {
-    /// A masked pixel with its measured modulation and background (no phase,
-    /// no point): where the two-ray row pass starts each pixel.
-    pub const fn masked(modulation: f32, background: f32) -> Self {
-        PixelResult {
-            phase_u: f32::NAN,
-            status: PixelStatus::Masked,
-            point_m: [f32::NAN; 3],
-            depth_m: f32::NAN,
-            sigma_m: f32::NAN,
-            modulation,
-            background,
-        }
-    }
 }
 
 /// The organised result, one value per camera pixel in each map, plus the cloud.
@@ -344,44 +328,6 @@ impl Reconstructor {
         (constant + per_level * a.max(0.0)).sqrt()
     }
 
-    /// Triangulates pixel `i` from both absolute phases (ray / ray); fills `out` (whose
-    /// background is the pixel's level). The column-only path is the vectorised
-    /// [`Triangulator::intersect_columns`].
-    fn triangulate_two_rays(
-        &self,
-        i: usize,
-        phase_u: f32,
-        phase_v: f32,
-        b0: f32,
-        out: &mut PixelResult,
-    ) {
-        let p0 = self.config.periods_px[0] as f32;
-        let tau = std::f32::consts::TAU;
-        let (u, v) = (phase_u * p0 / tau, phase_v * p0 / tau);
-        let proj = self.triangulator.projector();
-        let inside = |c: f32, extent: u32| c >= -0.5 && c <= extent as f32 - 0.5;
-        out.phase_u = phase_u;
-        out.status = PixelStatus::Unreliable;
-        if !inside(u, proj.width_px) || !inside(v, proj.height_px) {
-            return;
-        }
-        let Some((t, _gap)) = self
-            .triangulator
-            .intersect_two_rays(i, f64::from(u), f64::from(v))
-        else {
-            return;
-        };
-        // CRB phase noise of the finest period -> projector pixels -> metres along the ray.
-        // This is the column-only figure: an upper bound, since the two-ray solution also
-        // uses the row.
-        let sigma_phi = self.noise_times_crb * self.noise_scale(out.background) / b0;
-        let sigma_px = sigma_phi * p0 / tau;
-        out.sigma_m = self.triangulator.range_per_px(i, ProjectorAxis::Column, u) * sigma_px;
-        out.point_m = [t.point_m.x, t.point_m.y, t.point_m.z];
-        out.depth_m = t.depth_m;
-        out.status = PixelStatus::Valid;
-    }
-
     /// `1 / full scale` for frames of sample type `T`.
     fn sample_scale<T: Sample>(&self) -> f32 {
         1.0 / self.config.full_scale.unwrap_or(T::FULL_SCALE)
@@ -471,11 +417,12 @@ mod tests {
     /// Fringe periods of the small rig's frames, projector pixels.
     const PERIODS: [f64; 3] = [9.0, 10.0, 11.0];
 
-    /// The two calibration spheres seen by the small rig in 4-step column fringes of
-    /// [`PERIODS`], noise seeded by `seed`.
+    /// The two calibration spheres seen by the small rig in 4-step fringes of [`PERIODS`]
+    /// along projector columns (or rows), noise seeded by `seed`.
     fn sphere_frames(
         camera: &CameraModel,
         projector: &ProjectorModel,
+        columns: bool,
         seed: u64,
     ) -> Vec<Raster<f32>> {
         let truth = synth::trace(&synth::two_spheres(0.5, 0.6), camera, projector);
@@ -484,7 +431,7 @@ mod tests {
             gain: 0.7,
             noise_sigma: 0.005,
         };
-        synth::render_fringe_set(&truth, &PERIODS, 4, true, &light, seed)
+        synth::render_fringe_set(&truth, &PERIODS, 4, columns, &light, seed)
     }
 
     /// Every map's bits (NaNs compare equal, unlike `PartialEq` on the floats).
@@ -518,7 +465,7 @@ mod tests {
     #[test]
     fn fused_and_staged_agree_and_errors_are_typed() {
         let (camera, projector) = small_rig();
-        let frames = sphere_frames(&camera, &projector, 7);
+        let frames = sphere_frames(&camera, &projector, true, 7);
         let refs: Vec<&Raster<f32>> = frames.iter().collect();
         let rec = Reconstructor::new(&camera, &projector, ReconstructConfig::new(PERIODS.into()))
             .unwrap();
@@ -528,7 +475,7 @@ mod tests {
         assert_eq!(fused.cloud, staged.cloud);
         assert!(map_bits(&fused) == map_bits(&staged), "staged maps differ");
         // Reusing the buffers of another capture's result gives the same result.
-        let other = sphere_frames(&camera, &projector, 8);
+        let other = sphere_frames(&camera, &projector, true, 8);
         let other: Vec<&Raster<f32>> = other.iter().collect();
         let mut reused = rec.reconstruct(&other, None).unwrap();
         assert_ne!(reused.cloud, fused.cloud);
@@ -563,7 +510,7 @@ mod tests {
         let (camera, mut projector) = small_rig();
         projector.distortion.k1 = 0.03;
         projector.distortion.p1 = 3e-4;
-        let frames = sphere_frames(&camera, &projector, 3);
+        let frames = sphere_frames(&camera, &projector, true, 3);
         let refs: Vec<&Raster<f32>> = frames.iter().collect();
         let rec = Reconstructor::new(&camera, &projector, ReconstructConfig::new(PERIODS.into()))
             .unwrap();
@@ -576,12 +523,28 @@ mod tests {
         assert!(a.cloud.len() > 500, "{}", a.cloud.len());
         assert!(map_bits(&a) == map_bits(&b), "maps differ");
         assert_eq!(a.cloud, b.cloud);
+        // Both directions (the two-ray row path) too.
+        let rows = sphere_frames(&camera, &projector, false, 4);
+        let rows: Vec<&Raster<f32>> = rows.iter().collect();
+        let mut config = ReconstructConfig::new(PERIODS.into());
+        config.directions = Directions::Both;
+        let rec = Reconstructor::new(&camera, &projector, config).unwrap();
+        let (a, b) = (
+            rec.clone()
+                .with_simd(Simd::best())
+                .reconstruct(&refs, Some(&rows)),
+            rec.with_simd(Simd::Baseline)
+                .reconstruct(&refs, Some(&rows)),
+        );
+        let (a, b) = (a.unwrap(), b.unwrap());
+        assert!(a.cloud.len() > 500, "{}", a.cloud.len());
+        assert!(map_bits(&a) == map_bits(&b), "two-ray maps differ");
     }
 
     #[test]
     fn shot_noise_makes_each_points_sigma_follow_its_level() {
         let (camera, projector) = small_rig();
-        let frames = sphere_frames(&camera, &projector, 7);
+        let frames = sphere_frames(&camera, &projector, true, 7);
         let refs: Vec<&Raster<f32>> = frames.iter().collect();
         let mut config = ReconstructConfig::new(PERIODS.into());
         let run = |config: &ReconstructConfig| {
@@ -620,7 +583,7 @@ mod tests {
     #[test]
     fn integer_frames_give_the_float_result() {
         let (camera, projector) = small_rig();
-        let frames = sphere_frames(&camera, &projector, 7);
+        let frames = sphere_frames(&camera, &projector, true, 7);
         let refs: Vec<&Raster<f32>> = frames.iter().collect();
         let config = ReconstructConfig::new(PERIODS.into());
         let rec = Reconstructor::new(&camera, &projector, config.clone()).unwrap();

@@ -7,7 +7,7 @@
 //! for the bench's breakdown. Both call these functions, so they agree bit for bit.
 
 use super::maps::RowMut;
-use super::{PixelResult, Reconstructor};
+use super::Reconstructor;
 use crate::phase::Sample;
 use crate::simd::simd_run;
 use crate::triangulation::ColumnHits;
@@ -27,13 +27,22 @@ pub(super) struct Decoded {
     pub absolute: Vec<f32>,
 }
 
+/// One row's projector coordinates and what triangulating them gave.
+#[derive(Default)]
+pub(super) struct Projected {
+    /// Projector column per pixel (NaN: nothing to triangulate).
+    column: Vec<f32>,
+    /// Projector row per pixel (two directions only).
+    row: Vec<f32>,
+    hits: ColumnHits,
+}
+
 /// Per-task buffers of the fused pass (allocated once per rayon job, not per row).
 #[derive(Default)]
 pub(super) struct Scratch {
     pub u: Decoded,
     pub v: Decoded,
-    column: Vec<f32>,
-    hits: ColumnHits,
+    projected: Projected,
 }
 
 impl Reconstructor {
@@ -79,22 +88,6 @@ impl Reconstructor {
         heterodyne.unwrap_row(&dec.phase, &mut dec.absolute);
     }
 
-    /// Absolute phase of one direction at a pixel, or why not (mask, order noise,
-    /// heterodyne residual).
-    #[inline(always)]
-    fn direction_phase(&self, dec: &Decoded, x: usize) -> Result<f32, PixelStatus> {
-        let b = dec.min_modulation[x];
-        // Written so that a NaN modulation (corrupt samples) is masked too.
-        let usable = b >= self.config.min_modulation;
-        if !usable {
-            Err(PixelStatus::Masked)
-        } else if b < self.min_reliable_modulation || dec.absolute[x].is_nan() {
-            Err(PixelStatus::Unreliable)
-        } else {
-            Ok(dec.absolute[x])
-        }
-    }
-
     /// Triangulates one unwrapped row (`first_index` = index of its first pixel) into the
     /// organised output; returns the number of valid pixels.
     #[inline(always)]
@@ -103,13 +96,17 @@ impl Reconstructor {
         first_index: usize,
         u: &Decoded,
         v: Option<&Decoded>,
-        scratch_column: &mut Vec<f32>,
-        hits: &mut ColumnHits,
+        projected: &mut Projected,
         out: RowMut<'_>,
     ) -> usize {
         if let Some(v) = v {
-            return self.finish_row_two_rays(first_index, u, v, out);
+            return self.finish_row_two_rays(first_index, u, v, projected, out);
         }
+        let Projected {
+            column: scratch_column,
+            hits,
+            ..
+        } = projected;
         let width = out.status.len();
         let p0 = self.config.periods_px[0] as f32;
         let tau = std::f32::consts::TAU;
@@ -183,28 +180,88 @@ impl Reconstructor {
         valid
     }
 
-    /// [`Reconstructor::finish_row`] with both directions: ray / ray, pixel by pixel.
+    /// [`Reconstructor::finish_row`] with both directions: ray / ray, as whole-row loops
+    /// that vectorise ([`crate::triangulation::Triangulator::intersect_two_rays_row`]).
+    /// A pixel's status is that of the first direction that fails (columns first).
+    /// Kept out of line and baseline-only: its AVX2 build, inlined or dispatched on its
+    /// own, made the whole 6 MP two-direction pass slower (~455 vs ~300 ms, reason not
+    /// found), although the same loop alone runs 2x faster with AVX2.
+    #[inline(never)]
     fn finish_row_two_rays(
         &self,
         first_index: usize,
         u: &Decoded,
         v: &Decoded,
-        mut out: RowMut<'_>,
+        projected: &mut Projected,
+        out: RowMut<'_>,
     ) -> usize {
+        let width = out.status.len();
+        let p0 = self.config.periods_px[0] as f32;
+        let tau = std::f32::consts::TAU;
+        let px_per_rad = p0 / tau;
+        let projector = self.triangulator.projector();
+        let (last_u, last_v) = (
+            projector.width_px as f32 - 0.5,
+            projector.height_px as f32 - 0.5,
+        );
+        let (min_mod, min_reliable) = (self.config.min_modulation, self.min_reliable_modulation);
+        // Usable (modulation above the mask) and reliable (order noise, heterodyne), per
+        // direction; `&`, not `&&`, and NaN fails every comparison.
+        let usable = |d: &Decoded, x: usize| d.min_modulation[x] >= min_mod;
+        let reliable = |d: &Decoded, x: usize| {
+            usable(d, x) & (d.min_modulation[x] >= min_reliable) & !d.absolute[x].is_nan()
+        };
+        let Projected { column, row, hits } = projected;
+        column.clear();
+        row.clear();
+        for x in 0..width {
+            let (c, r) = (u.absolute[x] * px_per_rad, v.absolute[x] * px_per_rad);
+            let on_dmd = (c >= -0.5) & (c <= last_u) & (r >= -0.5) & (r <= last_v);
+            let ok = reliable(u, x) & reliable(v, x) & on_dmd;
+            column.push(if ok { c } else { f32::NAN });
+            row.push(if ok { r } else { f32::NAN });
+        }
+        self.triangulator
+            .intersect_two_rays_row(first_index, column, row, hits);
+        let sigma_px_times_b = self.noise_times_crb * px_per_rad;
+        let RowMut {
+            status,
+            phase_u,
+            point_m: [px, py, pz],
+            depth_m,
+            sigma_m,
+            modulation,
+            background,
+        } = out;
         let mut valid = 0;
-        for x in 0..out.status.len() {
-            let mut r = PixelResult::masked(
-                u.min_modulation[x].min(v.min_modulation[x]),
-                u.background[x],
-            );
-            match (self.direction_phase(u, x), self.direction_phase(v, x)) {
-                (Ok(pu), Ok(pv)) => {
-                    self.triangulate_two_rays(first_index + x, pu, pv, u.modulation[x], &mut r)
-                }
-                (Err(s), _) | (_, Err(s)) => r.status = s,
-            }
-            valid += usize::from(r.status == PixelStatus::Valid);
-            out.set(x, &r);
+        for x in 0..width {
+            let (rel_u, rel_v) = (reliable(u, x), reliable(v, x));
+            let hit = !hits.depth_m[x].is_nan();
+            status[x] = if !usable(u, x) {
+                PixelStatus::Masked
+            } else if !rel_u {
+                PixelStatus::Unreliable
+            } else if !usable(v, x) {
+                PixelStatus::Masked
+            } else if !rel_v || !hit {
+                PixelStatus::Unreliable
+            } else {
+                PixelStatus::Valid
+            };
+            phase_u[x] = if rel_u & rel_v {
+                u.absolute[x]
+            } else {
+                f32::NAN
+            };
+            (px[x], py[x], pz[x]) = (hits.point_m[0][x], hits.point_m[1][x], hits.point_m[2][x]);
+            depth_m[x] = hits.depth_m[x];
+            // The column's CRB figure: an upper bound, the two-ray solution also uses
+            // the row. NaN without a point.
+            let sigma_px = sigma_px_times_b * self.noise_scale(u.background[x]) / u.modulation[x];
+            sigma_m[x] = hits.range_per_px[x] * sigma_px;
+            modulation[x] = u.min_modulation[x].min(v.min_modulation[x]);
+            background[x] = u.background[x];
+            valid += usize::from(hit);
         }
         valid
     }
@@ -233,10 +290,10 @@ impl Reconstructor {
             simd_run!(simd, Self::unwrap_row(&self.heterodyne_v, &mut scratch.v));
         }
         let v = frames_v.map(|_| &scratch.v);
-        let (column, hits) = (&mut scratch.column, &mut scratch.hits);
+        let projected = &mut scratch.projected;
         simd_run!(
             simd,
-            self.finish_row(y * width, &scratch.u, v, column, hits, out)
+            self.finish_row(y * width, &scratch.u, v, projected, out)
         )
     }
 }

@@ -5,13 +5,12 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::rows::Decoded;
+use super::rows::{Decoded, Projected};
 use super::{Directions, PixelMaps, ReconstructError, Reconstruction, Reconstructor, StageTimes};
 use crate::phase::Sample;
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::simd::simd_run;
-use crate::triangulation::ColumnHits;
 
 impl Reconstructor {
     /// The same stages as [`Reconstructor::reconstruct`] but as separate passes over the
@@ -57,15 +56,12 @@ impl Reconstructor {
             .into_par_iter()
             .zip(&decoded)
             .enumerate()
-            .map_init(
-                || (Vec::new(), ColumnHits::default()),
-                |(column, hits), (y, (row, d))| {
-                    simd_run!(
-                        self.simd,
-                        self.finish_row(y * width, d, None, column, hits, row)
-                    )
-                },
-            )
+            .map_init(Projected::default, |projected, (y, (row, d))| {
+                simd_run!(
+                    self.simd,
+                    self.finish_row(y * width, d, None, projected, row)
+                )
+            })
             .collect();
         times.triangulate_s = t.elapsed().as_secs_f64();
 
