@@ -745,6 +745,22 @@ mod tests {
         Triangulator::new(&camera, &projector)
     }
 
+    /// The wide rig's camera pixel (row-major index) nearest the point `range_m` along
+    /// projector pixel `(u, v)`'s ray, and that point; `None` off the camera image.
+    fn camera_pixel_seeing(
+        tri: &Triangulator,
+        u: f64,
+        v: f64,
+        range_m: f64,
+    ) -> Option<(usize, Point3<f64>)> {
+        let ray = tri.projector.pixel_ray(u, v)?;
+        let point = ray.origin_m + ray.direction * range_m;
+        let pixel = tri.camera.project(&point)?;
+        let (x, y) = (pixel.x.round(), pixel.y.round());
+        let on_image = (0.0..64.0).contains(&x) && (0.0..48.0).contains(&y);
+        on_image.then_some((y as usize * 64 + x as usize, point))
+    }
+
     proptest::proptest! {
         /// Random points over the whole projector image (corners included) and depth range:
         /// the vectorised distorted row path agrees with the f64 solution within 2e-6 m.
@@ -756,12 +772,9 @@ mod tests {
         ) {
             let tri = wide_rig();
             let (camera, projector) = (tri.camera, tri.projector);
-            let ray = projector.pixel_ray(u, v).unwrap();
-            let near = ray.origin_m + ray.direction * range_m;
-            let pixel = camera.project(&near).unwrap();
-            let (cx, cy) = (pixel.x.round(), pixel.y.round());
-            proptest::prop_assume!((0.0..64.0).contains(&cx) && (0.0..48.0).contains(&cy));
-            let index = cy as usize * 64 + cx as usize;
+            let seen = camera_pixel_seeing(&tri, u, v, range_m);
+            proptest::prop_assume!(seen.is_some());
+            let (index, near) = seen.unwrap();
             // The point on this pixel's stored ray at about the same depth, and its column.
             let start = camera.pose.apply(&near).z;
             let [x, y] = tri.normalised[index].map(f64::from);
@@ -789,12 +802,9 @@ mod tests {
             range_m in 0.3f64..1.2,
         ) {
             let tri = wide_rig();
-            let (camera, projector) = (tri.camera, tri.projector);
-            let ray = projector.pixel_ray(u, v).unwrap();
-            let pixel = camera.project(&(ray.origin_m + ray.direction * range_m)).unwrap();
-            let (cx, cy) = (pixel.x.round(), pixel.y.round());
-            proptest::prop_assume!((0.0..64.0).contains(&cx) && (0.0..48.0).contains(&cy));
-            let index = cy as usize * 64 + cx as usize;
+            let seen = camera_pixel_seeing(&tri, u, v, range_m);
+            proptest::prop_assume!(seen.is_some());
+            let (index, _) = seen.unwrap();
             let (want, _) = tri.intersect_two_rays(index, u, v).unwrap();
             let mut hits = ColumnHits::default();
             tri.intersect_two_rays_row(index, &[u as f32], &[v as f32], &mut hits);
