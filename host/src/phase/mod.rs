@@ -349,10 +349,16 @@ pub fn fast_atan2(y: f32, x: f32) -> f32 {
     // Branch-free (selects only) so that row loops vectorise.
     let ax = x.abs();
     let ay = y.abs();
-    let num = ax.min(ay);
-    let den = ax.max(ay);
+    // Selects rather than `f32::min`/`max`, which skip a NaN: a NaN input (a corrupt
+    // sample) must give a NaN phase, not a plausible one.
+    let (num, den) = if ax < ay { (ax, ay) } else { (ay, ax) };
     // 0/0 -> 0: the smallest positive normal keeps the quotient finite.
-    let t = num / den.max(f32::MIN_POSITIVE);
+    let t = num
+        / if den < f32::MIN_POSITIVE {
+            f32::MIN_POSITIVE
+        } else {
+            den
+        };
     let t2 = t * t;
     // Abramowitz & Stegun 4.4.49: atan(t)/t on [0, 1] to 2e-8, then f32 rounding.
     // Plain multiply-adds: `mul_add` would call libm's fmaf without the `fma` target feature.
@@ -394,6 +400,10 @@ mod tests {
         }
         assert!(worst < 1.2e-6, "worst error {worst}");
         assert_eq!(fast_atan2(0.0, 0.0), 0.0);
+        // A corrupt sample's NaN reaches the phase.
+        for (y, x) in [(f32::NAN, 1.0), (1.0, f32::NAN), (f32::NAN, f32::NAN)] {
+            assert!(fast_atan2(y, x).is_nan(), "atan2({y}, {x})");
+        }
     }
 
     #[test]

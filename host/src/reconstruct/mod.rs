@@ -542,6 +542,49 @@ mod tests {
     }
 
     #[test]
+    fn nan_and_infinite_samples_are_masked_not_triangulated() {
+        let (camera, projector) = small_rig();
+        let mut columns = sphere_frames(&camera, &projector, true, 7);
+        let mut rows = sphere_frames(&camera, &projector, false, 8);
+        // A patch of corrupt samples in one frame of each direction.
+        let patch: Vec<usize> = (10..20)
+            .flat_map(|y| (20..30).map(move |x| y * 64 + x))
+            .collect();
+        for &i in &patch {
+            columns[5].data[i] = f32::NAN;
+            rows[2].data[i] = if i % 2 == 0 { f32::INFINITY } else { f32::NAN };
+        }
+        let (cu, cv): (Vec<&Raster<f32>>, Vec<&Raster<f32>>) =
+            (columns.iter().collect(), rows.iter().collect());
+        for both in [false, true] {
+            let mut config = ReconstructConfig::new(PERIODS.into());
+            if both {
+                config.directions = Directions::Both;
+            }
+            let rec = Reconstructor::new(&camera, &projector, config).unwrap();
+            let out = rec.reconstruct(&cu, both.then_some(&cv[..])).unwrap();
+            for &i in &patch {
+                let p = out.pixels.get(i);
+                assert_eq!(
+                    p.status,
+                    PixelStatus::Masked,
+                    "both={both} pixel {i}: {p:?}"
+                );
+                assert!(p.point_m[0].is_nan() && p.sigma_m.is_nan());
+            }
+            assert!(out.cloud.len() > 500, "both={both}: {}", out.cloud.len());
+            assert!(out.cloud.points_m.iter().flatten().all(|v| v.is_finite()));
+            assert!(out
+                .cloud
+                .quality_m
+                .as_ref()
+                .unwrap()
+                .iter()
+                .all(|v| v.is_finite()));
+        }
+    }
+
+    #[test]
     fn shot_noise_makes_each_points_sigma_follow_its_level() {
         let (camera, projector) = small_rig();
         let frames = sphere_frames(&camera, &projector, true, 7);

@@ -77,7 +77,16 @@ impl Reconstructor {
         out.min_modulation.fill(f32::INFINITY);
         for m in out.modulation.chunks_exact(width) {
             for (b, &m) in out.min_modulation.iter_mut().zip(m) {
-                *b = b.min(m);
+                // A non-finite modulation (NaN or infinite samples) makes the minimum NaN
+                // for good, which every threshold refuses: the pixel is masked. (`f32::min`
+                // would skip the NaN, and the period's phase is garbage then.)
+                *b = if !m.is_finite() {
+                    f32::NAN
+                } else if m < *b {
+                    m
+                } else {
+                    *b
+                };
             }
         }
     }
