@@ -192,10 +192,7 @@ impl Reconstructor {
     /// [`Reconstructor::finish_row`] with both directions: ray / ray, as whole-row loops
     /// that vectorise ([`crate::triangulation::Triangulator::intersect_two_rays_row`]).
     /// A pixel's status is that of the first direction that fails (columns first).
-    /// Kept out of line and baseline-only: its AVX2 build, inlined or dispatched on its
-    /// own, made the whole 6 MP two-direction pass slower (~455 vs ~300 ms, reason not
-    /// found), although the same loop alone runs 2x faster with AVX2.
-    #[inline(never)]
+    #[inline(always)]
     fn finish_row_two_rays(
         &self,
         first_index: usize,
