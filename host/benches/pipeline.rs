@@ -24,7 +24,7 @@
 //! kernel's clearing of ~390 MB (huge pages, filled by both threads; ~25-45 ms).
 //!
 //! A last line times both directions (24 f32 frames, two-ray triangulation, 2 threads):
-//! ~230-275 ms fresh / ~175-220 ms reused (two runs). The per-pixel f64 two-ray path it replaced took ~343
+//! ~230-275 ms fresh / ~175-220 ms reused (three runs). The per-pixel f64 two-ray path it replaced took ~343
 //! ms fresh (and ~440 against ~230 ms now with a distorted projector, measured once with
 //! a throwaway harness).
 
