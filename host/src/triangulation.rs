@@ -206,14 +206,13 @@ impl Triangulator {
             // In front of the camera and of the projector (NaN fails both).
             let ok = z > 0.0 && z < f32::INFINITY && q[2] + z * b > 0.0;
             let z = if ok { z } else { f32::NAN };
-            px[i] = c[0] + z * (rw[0][0] * x + rw[0][1] * y + rw[0][2]);
-            py[i] = c[1] + z * (rw[1][0] * x + rw[1][1] * y + rw[1][2]);
-            pz[i] = c[2] + z * (rw[2][0] * x + rw[2][1] * y + rw[2][2]);
+            [px[i], py[i], pz[i]] = point_on_ray(c, rw, x, y, z);
             depth[i] = z;
-            // d range / d u = |m| dZ/du, dZ/dx_n = (q.z a - q.x b) / den^2.
-            let norm = (x * x + y * y + 1.0).sqrt();
-            let dz = ((q[2] * a - q[0] * b) / (den * den) * inv_fx).abs();
-            rpp[i] = if ok { norm * dz } else { f32::NAN };
+            rpp[i] = if ok {
+                metres_per_column(q, (x * x + y * y + 1.0).sqrt(), a, b, den, inv_fx)
+            } else {
+                f32::NAN
+            };
         }
     }
 
@@ -290,14 +289,14 @@ impl Triangulator {
             // practice); a diverging iteration fails.
             ok &= step.abs() <= 1e-3 * z;
             let z = if ok { z } else { f32::NAN };
-            px[i] = c[0] + z * (rw[0][0] * x + rw[0][1] * y + rw[0][2]);
-            py[i] = c[1] + z * (rw[1][0] * x + rw[1][1] * y + rw[1][2]);
-            pz[i] = c[2] + z * (rw[2][0] * x + rw[2][1] * y + rw[2][2]);
+            [px[i], py[i], pz[i]] = point_on_ray(c, rw, x, y, z);
             depth[i] = z;
             // As [`Triangulator::range_per_px`]: the undistorted plane's derivative at `t`.
-            let norm = (x * x + y * y + 1.0).sqrt();
-            let dz = ((q[2] * gx - q[0] * gz) / (den * den) * inv_fx).abs();
-            rpp[i] = if ok { norm * dz } else { f32::NAN };
+            rpp[i] = if ok {
+                metres_per_column(q, (x * x + y * y + 1.0).sqrt(), gx, gz, den, inv_fx)
+            } else {
+                f32::NAN
+            };
         }
     }
 
@@ -419,9 +418,11 @@ impl Triangulator {
             // As `range_per_px` for the column (plane through the distorted column).
             let a = rp[0][0] * x + rp[0][1] * y + rp[0][2];
             let b = rp[2][0] * x + rp[2][1] * y + rp[2][2];
-            let den_plane = a - xd * b;
-            let dzdu = ((q[2] * a - q[0] * b) / (den_plane * den_plane) * inv_fx).abs();
-            rpp[i] = if ok { norm * dzdu } else { f32::NAN };
+            rpp[i] = if ok {
+                metres_per_column(q, norm, a, b, a - xd * b, inv_fx)
+            } else {
+                f32::NAN
+            };
         }
     }
 
@@ -591,6 +592,26 @@ pub fn closest_points(
     let t = (aa * bw - ab * aw) / den;
     let gap = ((a + da * s) - (b + db * t)).norm();
     Some((s, t, gap))
+}
+
+/// The point at depth `z` on camera ray `m = (x, y, 1)`: `C + z R_c^T m` (`rw` = `R_c^T`
+/// rows), NaN for a NaN `z`. One pixel of the row loops; inlined so they vectorise.
+#[inline(always)]
+fn point_on_ray(c: [f32; 3], rw: &[[f32; 3]; 3], x: f32, y: f32, z: f32) -> [f32; 3] {
+    // Written out, not `[0, 1, 2].map(..)`: the closure form stopped the loops vectorising.
+    [
+        c[0] + z * (rw[0][0] * x + rw[0][1] * y + rw[0][2]),
+        c[1] + z * (rw[1][0] * x + rw[1][1] * y + rw[1][2]),
+        c[2] + z * (rw[2][0] * x + rw[2][1] * y + rw[2][2]),
+    ]
+}
+
+/// `|d range / d u|` (metres along camera ray `m` per projector column) at the column
+/// plane `x_n`, with `norm = |m|`, `a`, `b` = `(R_pc m).x`, `(R_pc m).z` and
+/// `den = a - x_n b`: `|m| dZ/du`, `dZ/dx_n = (q.z a - q.x b) / den^2`.
+#[inline(always)]
+fn metres_per_column(q: [f32; 3], norm: f32, a: f32, b: f32, den: f32, inv_fx: f32) -> f32 {
+    norm * ((q[2] * a - q[0] * b) / (den * den) * inv_fx).abs()
 }
 
 fn to_f32(v: &Vector3<f64>) -> [f32; 3] {
