@@ -9,7 +9,9 @@
 //! ```
 //!
 //! [`reconstruct::Reconstructor`] runs phase -> heterodyne -> triangulation in one fused
-//! pass for one head. [`synth`] is a formula-based renderer for tests and benches (not the
+//! pass for one head. `sim` (cargo feature `sim`, on by default) is the only module that
+//! knows the simulator (hil-sim): the simulated rig, the twin's truth and calibration views;
+//! `--no-default-features` builds the hardware path and the CLI without it. [`synth`] is a formula-based renderer for tests and benches (not the
 //! digital twin); [`fit`] fits planes and spheres for accuracy reports.
 #![warn(missing_docs)]
 
@@ -27,6 +29,8 @@ pub mod raster;
 pub mod reconstruct;
 pub mod rig;
 pub mod scan;
+#[cfg(feature = "sim")]
+pub mod sim;
 pub mod simd;
 pub mod synth;
 pub mod triangulation;

@@ -1,5 +1,5 @@
 //! Calibration end to end on formula-rendered views (see
-//! `calibration::synthetic`, kernels in isolation; the digital-twin version is
+//! `synth::targets`, kernels in isolation; the digital-twin version is
 //! `twin_accuracy.rs`, and `cli_sim_then_images_round_trip` runs the twin): detection
 //! accuracy against the true projected corners, camera intrinsics and
 //! distortion, projector intrinsics and camera -> projector pose from phase
@@ -14,11 +14,11 @@ use slscan::calibration::head::{
     HeadOptions,
 };
 use slscan::calibration::rodrigues::{pose_from_rodrigues, rotation_angle_between};
-use slscan::calibration::sim_head::SimHead;
-use slscan::calibration::synthetic::{
+use slscan::calibration::{Intrinsics, PinholeModel};
+use slscan::synth::calibration_head::SimHead;
+use slscan::synth::targets::{
     render_checkerboard, render_circle_grid, true_corners, BitDepth, RenderSettings,
 };
-use slscan::calibration::{Intrinsics, PinholeModel};
 
 fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
@@ -373,6 +373,7 @@ fn views_without_a_board_are_skipped_and_too_few_is_an_error() {
 /// `slscan calibrate --sim --two-heads` writes a two-head rig file that
 /// reads back, and the images and phase maps it saves calibrate again
 /// through `--images`.
+#[cfg(feature = "sim")]
 #[test]
 fn cli_sim_then_images_round_trip() {
     let dir = std::env::temp_dir().join(format!("slscan-cal-cli-{}", std::process::id()));
@@ -404,9 +405,9 @@ fn cli_sim_then_images_round_trip() {
     let sim_rig = slscan::calibration::read_rig(&rig).expect("valid rig file");
     assert_eq!(sim_rig.heads.len(), 2);
     assert_eq!(sim_rig.heads[1].view_errors.len(), 6);
-    let (_, truth) = slscan::calibration::twin_head::TwinHead::standard(
+    let (_, truth) = slscan::sim::calibration::twin_head::TwinHead::standard(
         6,
-        &hil_sim::twin::scenes::Detail::default(),
+        &slscan::sim::twin::Detail::default(),
     )
     .second_head();
     let h2h = sim_rig.head_to_head.expect("two heads have head_to_head");

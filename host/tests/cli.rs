@@ -188,3 +188,30 @@ fn patterns_writes_each_family() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Built without the simulator, every `--sim` says so, exits non-zero and
+/// leaves nothing on disk.
+#[cfg(not(feature = "sim"))]
+#[test]
+fn sim_options_say_the_build_has_no_simulator() {
+    let dir = tmp("no-sim");
+    let runs: [&[&str]; 3] = [
+        &["scan", "--sim", "--out"],
+        &["calibrate", "--sim", "--out"],
+        &["board", "info", "--sim"],
+    ];
+    for (k, args) in runs.iter().enumerate() {
+        let target = dir.join(format!("run{k}")).join("out");
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_slscan"));
+        cmd.args(*args);
+        if args.last() == Some(&"--out") {
+            cmd.arg(&target);
+        }
+        let out = cmd.output().unwrap();
+        fails_with(&out, "built without the simulator");
+        assert!(
+            !dir.join(format!("run{k}")).exists(),
+            "{args:?} made a folder"
+        );
+    }
+}

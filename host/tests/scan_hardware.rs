@@ -20,7 +20,9 @@ use slscan::rig::folder_projector::{
 use slscan::rig::hardware::HardwareRig;
 use slscan::rig::serial_board::SerialBoard;
 use slscan::rig::RigError;
-use slscan::scan::{run_on_rig, GroundTruth, Mode, ScanConfig, ScanError, ScanResult};
+use slscan::scan::{run_on_rig, Mode, ScanConfig, ScanError, ScanResult};
+use slscan::sim::scan::{noise_sigma, shot_noise_share, sim_sensor};
+use slscan::sim::truth::ground_truth;
 
 #[path = "support/vendor_tools.rs"]
 mod vendor_tools;
@@ -32,6 +34,9 @@ fn config(mode: Mode) -> ScanConfig {
     let mut config = ScanConfig::new("hardware");
     config.mode = mode;
     config.camera_px = CAMERA_PX;
+    // The camera noise the twin's sensor has, as a user gives it for theirs.
+    config.noise_sigma = noise_sigma(&sim_sensor());
+    config.shot_noise_share = shot_noise_share(&sim_sensor());
     config
 }
 
@@ -76,7 +81,7 @@ fn hardware_scan(
     with_vendor_tools(name, fault, |port, folders| {
         let (twin, calibration) = twin();
         let mut rig = hardware_rig(port, folders, Duration::from_secs(timeout))?;
-        let truth = truth.then(|| GroundTruth::new(twin.clone()));
+        let truth = truth.then(|| ground_truth(twin, 2).expect("twin truth"));
         run_on_rig(
             &mut rig,
             calibration,

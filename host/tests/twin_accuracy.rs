@@ -15,15 +15,15 @@ use hil_sim::twin::{
 };
 use nalgebra::Point3;
 use slscan::calibration::board::Target;
-use slscan::calibration::from_twin::{head_from_twin, pose_from_twin};
 use slscan::calibration::head::{calibrate_head, HeadOptions};
 use slscan::calibration::rodrigues::rotation_angle_between;
-use slscan::calibration::twin_head::{self, TwinHead};
 use slscan::calibration::{Head, PinholeModel, Pose};
 use slscan::fit::fit_sphere;
 use slscan::phase::{phase_noise_crb, wrap_pi, PhaseShift};
 use slscan::raster::Raster;
 use slscan::reconstruct::{ReconstructConfig, Reconstruction, Reconstructor};
+use slscan::sim::calibration::from_twin::{head_from_twin, pose_from_twin};
+use slscan::sim::calibration::twin_head::{self, TwinHead};
 use slscan::unwrap::PixelStatus;
 
 /// Small renders: a 320x240 camera and a 640x400 DMD keep the suite fast on 2 cores.

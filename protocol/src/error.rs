@@ -3,8 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::messages::ScanState;
 use crate::plan::CapacityError;
+use crate::state::ScanState;
 
 /// Why a plan was refused. Indices are positions in the plan's cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]

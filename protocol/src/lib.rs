@@ -33,6 +33,7 @@ pub mod framing;
 pub mod limits;
 pub mod messages;
 pub mod plan;
+pub mod state;
 
 pub use error::{FrameError, HardwareFault, WireError};
 pub use framing::{decode_payload, encode_frame, FrameAccumulator};

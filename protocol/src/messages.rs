@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{HardwareFault, WireError};
 use crate::limits::BoardLimits;
 use crate::plan::{Exposure, PlanHeader};
+pub use crate::state::ScanState;
 
 /// Version of this wire contract; bumped on any incompatible change.
 pub const PROTOCOL_VERSION: u16 = 1;
@@ -130,23 +131,6 @@ pub enum ResetCause {
     Software,
     /// A simulated board (hil-sim).
     Simulated,
-}
-
-/// Sequencer states.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum ScanState {
-    /// No scan loaded into the timers.
-    Idle,
-    /// Edge table loaded, waiting for `Start`.
-    Armed,
-    /// Edges are being emitted.
-    Running,
-    /// All cycles ran and all feedback was checked.
-    Done,
-    /// Stopped by `Abort`.
-    Aborted,
-    /// Stopped by a hardware fault.
-    Faulted,
 }
 
 /// The compiled plan, as the board sees it.

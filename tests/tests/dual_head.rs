@@ -12,11 +12,12 @@ use hil_sim::faults::FaultPlan;
 use slscan::board::ClientConfig;
 use slscan::io::report::ScanReport;
 use slscan::rig::RigError;
-use slscan::scan::{output, scan_to_dir, Mode, ScanConfig, ScanError};
+use slscan::scan::{output, Mode, ScanError};
+use slscan::sim::scan::{scan_to_dir, SimScanConfig, SimScanError};
 
-fn small(scene: &str) -> ScanConfig {
-    let mut config = ScanConfig::new(scene);
-    config.camera_px = (200, 150);
+fn small(scene: &str) -> SimScanConfig {
+    let mut config = SimScanConfig::new(scene);
+    config.scan.camera_px = (200, 150);
     config
 }
 
@@ -37,7 +38,7 @@ fn out_dir(name: &str) -> PathBuf {
 fn check_fused_scan(mode: Mode, name: &str) -> ScanReport {
     let dir = out_dir(name);
     let mut config = small("large-part");
-    config.mode = mode;
+    config.scan.mode = mode;
     let report = scan_to_dir(&config, &dir, &mut |_| {}).expect("scan runs");
     for head in &report.heads {
         // Noise-limited: the phase noise of a 12-bit sensor through the
@@ -110,7 +111,7 @@ fn temporally_multiplexed_heads_separate_and_fuse_like_sequential_runs() {
 fn simultaneous_identical_sequences_mask_the_aliased_overlap_loudly() {
     let dir = out_dir("simultaneous");
     let mut config = small("large-part");
-    config.mode = Mode::Simultaneous;
+    config.scan.mode = Mode::Simultaneous;
     let report = scan_to_dir(&config, &dir, &mut |_| {}).expect("scan runs");
     assert!(
         report
@@ -148,7 +149,7 @@ fn board_going_silent_mid_scan_is_a_clear_error_and_leaves_no_scan() {
     }
     std::fs::write(dir.join("notes.txt"), b"the user's").unwrap();
     let mut config = small("large-part");
-    config.client = ClientConfig {
+    config.scan.client = ClientConfig {
         attempt_timeout: Duration::from_millis(200),
         attempts: 2,
     };
@@ -163,7 +164,7 @@ fn board_going_silent_mid_scan_is_a_clear_error_and_leaves_no_scan() {
     };
     let err = scan_to_dir(&config, &dir, &mut |_| {}).expect_err("the board vanished");
     assert!(
-        matches!(err, ScanError::Rig(RigError::Board(ref e)) if e.is_link_failure()),
+        matches!(err, SimScanError::Scan(ScanError::Rig(RigError::Board(ref e))) if e.is_link_failure()),
         "{err:?}"
     );
     let left: Vec<String> = std::fs::read_dir(&dir)
@@ -188,7 +189,10 @@ fn a_late_projector_is_caught_by_the_board_and_no_scan_is_written() {
     };
     let err = scan_to_dir(&config, &dir, &mut |_| {}).expect_err("late patterns");
     assert!(
-        matches!(err, ScanError::Rig(RigError::NotClean { .. })),
+        matches!(
+            err,
+            SimScanError::Scan(ScanError::Rig(RigError::NotClean { .. }))
+        ),
         "{err:?}"
     );
     assert!(!dir.join("scan.ply").exists());
@@ -202,18 +206,19 @@ fn head_a_with_table(
     use hil_sim::twin::scenes::{built_in, Detail};
     use hil_sim::twin::TwinRig;
     use slscan::reconstruct::{ReconstructConfig, Reconstructor};
-    use slscan::rig::sim::{SimRig, SimRigConfig};
     use slscan::rig::{Board, Camera, Projector};
-    use slscan::scan::{default_periods_px, metrics, noise_sigma, plan, sim_sensor, twin_truth};
+    use slscan::scan::{default_periods_px, metrics, plan};
+    use slscan::sim::rig::{SimRig, SimRigConfig};
+    use slscan::sim::scan::{noise_sigma, sim_sensor};
+    use slscan::sim::truth::{ground_truth, twin_calibration};
     use std::sync::Arc;
 
-    let config = small("large-part");
+    let config = small("large-part").scan;
     let detail = Detail {
         camera: config.camera_px,
         projector: config.projector_px,
     };
     let (scene, rig) = built_in("large-part", &detail).unwrap();
-    let is_object = metrics::object_ids(&scene);
     let twin = Arc::new(TwinRig::new(scene, rig).unwrap());
     let sensor = sim_sensor();
     let mut sim = SimRig::start(
@@ -233,20 +238,14 @@ fn head_a_with_table(
     sim.run_plan(&plan::one_pattern_per_exposure(protocol::HeadSet::A, count).unwrap())
         .expect("the board's timing is fine either way");
     let frames = sim.take_frames(0).unwrap();
-    let cal = twin_truth::twin_calibration(twin.rig(), 2);
+    let cal = twin_calibration(twin.rig(), 2);
     let mut rc_config = ReconstructConfig::new(periods);
     rc_config.noise_sigma = noise_sigma(&sensor);
     let rc = Reconstructor::from_head(&cal.heads[0], rc_config).unwrap();
     let refs: Vec<_> = frames.iter().collect();
     let recon = rc.reconstruct(&refs, None).unwrap();
-    let renderer = twin.renderer(0).unwrap();
-    metrics::pixel_accuracy(
-        &recon,
-        renderer.geometry(),
-        &twin_truth::head_from_world(twin.rig(), 0),
-        0,
-        &is_object,
-    )
+    let truth = ground_truth(&twin, 1).unwrap();
+    metrics::pixel_accuracy(&recon, &truth.cameras[0], &truth.head_from_world(0))
 }
 
 #[test]

@@ -9,24 +9,24 @@ use std::path::{Path, PathBuf};
 use hil_sim::twin::scenes::Detail;
 use hil_sim::twin::SensorModel;
 use slscan::calibration::head::HeadOptions;
-use slscan::calibration::twin_scene::{calibrate_scene, scene_heads};
 use slscan::calibration::{read_rig, write_rig};
 use slscan::io::report::ScanReport;
-use slscan::scan::calibration_source::CalibrationSourceError;
-use slscan::scan::{
-    default_periods_px, scan_to_dir, CalibrationSource, Progress, ScanConfig, ScanError,
-};
+use slscan::scan::calibration_file::CalibrationFileError;
+use slscan::scan::{default_periods_px, Progress};
+use slscan::sim::calibration::twin_scene::{calibrate_scene, scene_heads};
+use slscan::sim::calibration_source::CalibrationSource;
+use slscan::sim::scan::{scan_to_dir, SimScanConfig, SimScanError};
 
 const DETAIL: Detail = Detail {
     camera: (320, 240),
     projector: (640, 400),
 };
 
-fn config() -> ScanConfig {
-    let mut config = ScanConfig::new("large-part");
-    config.camera_px = DETAIL.camera;
-    config.projector_px = DETAIL.projector;
-    config.periods_px = default_periods_px(DETAIL.projector.0);
+fn config() -> SimScanConfig {
+    let mut config = SimScanConfig::new("large-part");
+    config.scan.camera_px = DETAIL.camera;
+    config.scan.projector_px = DETAIL.projector;
+    config.scan.periods_px = default_periods_px(DETAIL.projector.0);
     config
 }
 
@@ -36,7 +36,7 @@ fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
-fn scan(config: &ScanConfig, name: &str) -> ScanReport {
+fn scan(config: &SimScanConfig, name: &str) -> ScanReport {
     let dir = temp_dir(name);
     let report = scan_to_dir(config, &dir, &mut |_| {}).expect("scan runs");
     let _ = std::fs::remove_dir_all(&dir);
@@ -145,7 +145,7 @@ fn a_scan_on_an_estimated_calibration_stays_near_the_truth_calibrated_scan() {
 
 /// Runs a scan with the rig file at `path` and returns its error, checking
 /// that nothing was captured or written.
-fn refused(path: &Path, name: &str) -> ScanError {
+fn refused(path: &Path, name: &str) -> SimScanError {
     let dir = temp_dir(name);
     let mut config = config();
     config.calibration = CalibrationSource::File(path.to_owned());
@@ -171,7 +171,7 @@ fn a_bad_calibration_file_is_refused_before_any_capture() {
     // A valid rig of the scene, as `calibrate` writes it, at the scan's sizes.
     let (_, rig) = hil_sim::twin::scenes::built_in("large-part", &DETAIL).unwrap();
     let good = dir.join("good.json");
-    write_rig(&good, &slscan::scan::twin_truth::twin_calibration(&rig, 2)).unwrap();
+    write_rig(&good, &slscan::sim::truth::twin_calibration(&rig, 2)).unwrap();
     let text = std::fs::read_to_string(&good).unwrap();
     let write = |name: &str, body: &str| {
         let p = dir.join(name);
@@ -184,7 +184,7 @@ fn a_bad_calibration_file_is_refused_before_any_capture() {
     assert!(
         matches!(
             &err,
-            ScanError::Calibration(CalibrationSourceError::File(_))
+            SimScanError::Calibration(CalibrationFileError::File(_))
         ),
         "{err:?}"
     );
@@ -199,7 +199,7 @@ fn a_bad_calibration_file_is_refused_before_any_capture() {
     assert!(
         matches!(
             &err,
-            ScanError::Calibration(CalibrationSourceError::File(_))
+            SimScanError::Calibration(CalibrationFileError::File(_))
         ),
         "{err:?}"
     );
@@ -207,12 +207,12 @@ fn a_bad_calibration_file_is_refused_before_any_capture() {
     // A rig calibrated at 640x480 for a 320x240 scan.
     let (_, big) = hil_sim::twin::scenes::built_in("large-part", &Detail::default()).unwrap();
     let wrong = dir.join("wrong_size.json");
-    write_rig(&wrong, &slscan::scan::twin_truth::twin_calibration(&big, 2)).unwrap();
+    write_rig(&wrong, &slscan::sim::truth::twin_calibration(&big, 2)).unwrap();
     let err = refused(&wrong, "size");
     assert!(
         matches!(
             &err,
-            ScanError::Calibration(CalibrationSourceError::ImageSize {
+            SimScanError::Calibration(CalibrationFileError::ImageSize {
                 device: "camera",
                 file_px: (640, 480),
                 scan_px: (320, 240),

@@ -7,16 +7,17 @@
 //! pre-compensated for that gamma restore it.
 
 use slscan::io::report::HeadReport;
-use slscan::scan::{output, run_sim, Mode, ScanConfig};
+use slscan::scan::{output, Mode};
+use slscan::sim::scan::{run_sim, SimScanConfig, SimScanError};
 
 /// Each head's report of a 320x240 scan of `large-part`.
 fn heads(mode: Mode, gamma: f64, precompensate: bool) -> Vec<HeadReport> {
-    let mut config = ScanConfig::new("large-part");
-    config.camera_px = (320, 240);
-    config.mode = mode;
+    let mut config = SimScanConfig::new("large-part");
+    config.scan.camera_px = (320, 240);
+    config.scan.mode = mode;
     config.seed = 3;
     config.sim_projector_gamma = gamma;
-    config.precompensate_gamma = precompensate.then_some(gamma);
+    config.scan.precompensate_gamma = precompensate.then_some(gamma);
     let scan = run_sim(&config, &mut |_| {}).expect("scan runs");
     output::report(&scan).heads
 }
@@ -90,11 +91,11 @@ fn projector_gamma_breaks_the_multiplexed_overlap_unless_precompensated() {
 #[test]
 fn a_pre_compensation_gamma_that_is_not_positive_is_refused() {
     for gamma in [0.0, -2.2, f64::NAN] {
-        let mut config = ScanConfig::new("large-part");
-        config.precompensate_gamma = Some(gamma);
+        let mut config = SimScanConfig::new("large-part");
+        config.scan.precompensate_gamma = Some(gamma);
         let err = run_sim(&config, &mut |_| {}).expect_err("bad gamma");
         assert!(
-            matches!(err, slscan::scan::ScanError::BadGamma { gamma: g } if g.to_bits() == gamma.to_bits()),
+            matches!(err, SimScanError::Scan(slscan::scan::ScanError::BadGamma { gamma: g }) if g.to_bits() == gamma.to_bits()),
             "{err:?}"
         );
     }

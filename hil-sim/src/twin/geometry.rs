@@ -1,50 +1,12 @@
-//! Rays and the analytic shapes (rectangle, sphere, cuboid) in their own
-//! local frame; meshes live in `mesh.rs`. Every intersection returns the
-//! nearest `t > t_min` so that shadow rays can start just off a surface.
+//! The analytic shapes (rectangle, sphere, cuboid) in their own local
+//! frame; rays live in `ray.rs`, meshes in `mesh.rs`. Every intersection
+//! returns the nearest `t > t_min` so that shadow rays can start just off a
+//! surface.
 
-use nalgebra::{Isometry3, Point3, Vector3};
 use std::sync::Arc;
 
 use super::mesh::Mesh;
-
-/// 3-vector of metres (or a unit direction), f64.
-pub type V3 = Vector3<f64>;
-/// Rigid pose `world_from_local` (rotation then translation), metres.
-pub type Pose = Isometry3<f64>;
-
-/// A ray `origin + t * dir`; `dir` is unit length so `t` is metres.
-#[derive(Clone, Copy, Debug)]
-pub struct Ray {
-    /// Start point, metres.
-    pub origin: V3,
-    /// Unit direction.
-    pub dir: V3,
-}
-
-impl Ray {
-    /// Point at distance `t_m` along the ray.
-    pub fn at(&self, t_m: f64) -> V3 {
-        self.origin + self.dir * t_m
-    }
-
-    /// The same ray expressed in the frame whose `world_from_local` is `pose`.
-    pub fn to_local(&self, pose: &Pose) -> Ray {
-        let o = pose
-            .inverse_transform_point(&Point3::from(self.origin))
-            .coords;
-        let d = pose.inverse_transform_vector(&self.dir);
-        Ray { origin: o, dir: d }
-    }
-}
-
-/// A surface hit in the shape's local frame.
-#[derive(Clone, Copy, Debug)]
-pub struct LocalHit {
-    /// Distance along the ray, metres.
-    pub t_m: f64,
-    /// Outward unit normal, local frame.
-    pub normal: V3,
-}
+pub use super::ray::{LocalHit, Pose, Ray, V3};
 
 /// The geometric primitives a scene object can be.
 #[derive(Clone, Debug)]

@@ -9,7 +9,7 @@
 //! against brute force below.
 
 use super::error::TwinError;
-use super::geometry::{LocalHit, Ray, V3};
+use super::ray::{LocalHit, Ray, V3};
 
 const BINS: usize = 12;
 const LEAF_MAX: usize = 4;

@@ -57,6 +57,7 @@ pub mod mesh;
 pub mod mesh_io;
 pub mod pattern;
 pub mod random_scene;
+pub mod ray;
 pub mod render;
 pub mod scatter;
 pub mod scene;

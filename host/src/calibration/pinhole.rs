@@ -14,7 +14,7 @@
 //! integer coordinates and the origin at the top-left pixel's centre.
 //! A projector is the same model run backwards: its "pixel" is the DMD mirror.
 
-use nalgebra::{Matrix3, Point3, Vector2, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 
 /// Focal lengths and principal point, in pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -102,6 +102,22 @@ impl Pose {
         Self {
             rotation: rt,
             translation_m: -(rt * self.translation_m),
+        }
+    }
+
+    /// As an isometry (the rotation re-orthonormalised through a quaternion).
+    pub fn to_isometry(&self) -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::from(self.translation_m),
+            UnitQuaternion::from_matrix(&self.rotation),
+        )
+    }
+
+    /// An isometry as a pose.
+    pub fn from_isometry(t: &Isometry3<f64>) -> Self {
+        Self {
+            rotation: *t.rotation.to_rotation_matrix().matrix(),
+            translation_m: t.translation.vector,
         }
     }
 
@@ -254,6 +270,15 @@ impl PinholeModel {
 mod tests {
     use super::*;
     use nalgebra::Rotation3;
+
+    #[test]
+    fn pose_and_isometry_agree_on_points() {
+        let t = Isometry3::new(Vector3::new(0.1, -0.2, 0.3), Vector3::new(0.2, 0.1, -0.3));
+        let p = Pose::from_isometry(&t);
+        let x = Point3::new(0.3, 0.4, 0.5);
+        assert!((p.apply(&x) - t * x).norm() < 1e-12);
+        assert!((p.to_isometry() * x - t * x).norm() < 1e-12);
+    }
 
     fn lens() -> Distortion {
         Distortion {

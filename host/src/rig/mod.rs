@@ -8,9 +8,10 @@
 //!      --Camera::take_frames------> one frame per camera trigger, in order
 //! ```
 //!
-//! - [`sim`]: hil-sim's board on a pseudo-terminal (the host's serial client
-//!   talks to it) with cameras rendered by the digital twin from what the
-//!   simulated DMDs displayed while each simulated shutter was open.
+//! - `crate::sim::rig` (feature `sim`): hil-sim's board on a pseudo-terminal
+//!   (the host's serial client talks to it) with cameras rendered by the
+//!   digital twin from what the simulated DMDs displayed while each
+//!   simulated shutter was open.
 //! - [`hardware`]: the real sync board over a serial port ([`serial_board`]),
 //!   cameras read from the folder the camera vendor's software writes
 //!   ([`folder_camera`], behind the [`camera_source::FrameSource`] trait where
@@ -23,7 +24,6 @@ pub mod folder_camera;
 pub mod folder_projector;
 pub mod hardware;
 pub mod serial_board;
-pub mod sim;
 
 use std::path::PathBuf;
 
@@ -180,9 +180,15 @@ pub enum RigError {
         /// What failed (names the file).
         source: crate::io::images::ImageError,
     },
-    /// The simulator failed (pty, twin rendering).
-    #[error("simulator: {0}")]
-    Sim(String),
+    /// A device back end failed in a way of its own (the simulator's pty or
+    /// renderer, a vendor library).
+    #[error("{what}")]
+    Backend {
+        /// Which back end, and what it was doing.
+        what: String,
+        /// Its error.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }
 
 /// The sync board: runs a plan to its end.

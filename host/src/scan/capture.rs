@@ -17,7 +17,7 @@
 use protocol::HeadSet;
 
 use super::aliasing::{lighting, unusable_mask, AliasParams, FlatFields};
-use super::{plan, twin_truth, Mode, Progress, ScanConfig, ScanError};
+use super::{plan, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
 use crate::demultiplex::{phase_shift_rad, Demultiplexer, DemuxError, TemporalBins};
 use crate::raster::Raster;
 use crate::rig::{Board, Camera, Projector};
@@ -126,14 +126,14 @@ fn simultaneous<R: Board + Projector + Camera>(
     let mut raw = Vec::new();
     let mut frames = Vec::new();
     let mut flat = Vec::new();
-    for h in 0..2 {
+    for (h, head) in HEAD_NAMES.into_iter().enumerate() {
         let mut taken = rig.take_frames(h)?;
         let flats = taken.split_off(count);
         let [dark, lit_a, lit_b]: [Raster<f32>; 3] =
             flats
                 .try_into()
                 .map_err(|f: Vec<_>| ScanError::FlatFields {
-                    head: twin_truth::HEAD_NAMES[h],
+                    head,
                     frames: f.len(),
                 })?;
         flat.push(FlatFields { dark, lit_a, lit_b });
@@ -180,14 +180,12 @@ fn multiplexed<R: Board + Projector + Camera>(
     let demux = Demultiplexer::new(bins);
     let mut raw = Vec::new();
     let mut frames = Vec::new();
-    for h in 0..2 {
+    for (h, head) in HEAD_NAMES.into_iter().enumerate() {
         let taken = rig.take_frames(h)?;
-        frames.push(demultiplexed_frames(&demux, &taken, h).map_err(|source| {
-            ScanError::Demultiplex {
-                head: twin_truth::HEAD_NAMES[h],
-                source,
-            }
-        })?);
+        frames.push(
+            demultiplexed_frames(&demux, &taken, h)
+                .map_err(|source| ScanError::Demultiplex { head, source })?,
+        );
         raw.push(taken);
         progress(Progress::Step);
     }
@@ -262,7 +260,7 @@ pub fn mask_measured_overlap(
              projectors (aliased fringes); they and the pixels lit by the other head's projector \
              alone, {} in all (grown by {} px), are MASKED OUT, since no de-aliaser (seed 000's \
              learned one) exists yet",
-            twin_truth::HEAD_NAMES[h],
+            HEAD_NAMES[h],
             both.iter().filter(|&&b| b).count(),
             mask.iter().filter(|&&m| m).count(),
             params.grow_px

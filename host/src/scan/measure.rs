@@ -1,39 +1,19 @@
-//! The "measure" stage of a scan that has a ground truth (the digital twin):
-//! each head's reconstruction and the fused cloud against the true surface.
-//! On hardware there is none, and this stage does not run.
+//! The "measure" stage of a scan that has a ground truth (plain data,
+//! [`GroundTruth`]: the digital twin's, or a measured reference): each
+//! head's reconstruction and the fused cloud against the true surface.
+//! Without one (hardware, usually) this stage does not run.
 
-use std::sync::Arc;
-
-use hil_sim::twin::{CameraGeometry, TwinRig};
 use nalgebra::Isometry3;
 
 use super::clouds::{points_f64, transformed};
 use super::metrics::{self, Sample};
+use super::truth::{CameraTruth, GroundTruth};
 use super::truth_frame::fit_frame;
-use super::{aliasing, twin_truth, FusedTruth, HeadTruth, ScanError};
+use super::{aliasing, FusedTruth, HeadTruth, ScanError, HEAD_NAMES};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::Reconstruction;
 use crate::unwrap::PixelStatus;
-
-/// The digital twin a simulated scan is measured against.
-#[derive(Clone)]
-pub struct GroundTruth {
-    /// The twin the cameras rendered.
-    pub twin: Arc<TwinRig>,
-    /// Per scene object: whether it is "the object" (all but the wall).
-    pub is_object: Vec<bool>,
-}
-
-impl GroundTruth {
-    /// The truth of `twin`.
-    pub fn new(twin: Arc<TwinRig>) -> Self {
-        GroundTruth {
-            is_object: metrics::object_ids(twin.scene()),
-            twin,
-        }
-    }
-}
 
 /// Per-head and fused figures against the truth, and the coverage denominator.
 pub struct Measured {
@@ -60,17 +40,19 @@ pub fn measure(
     aliased_masks: &[Vec<bool>],
     warnings: &mut Vec<String>,
 ) -> Result<Measured, ScanError> {
-    let twin = &truth.twin;
-    let geometries: Vec<_> = (0..recons.len())
-        .map(|h| twin.renderer(h))
-        .collect::<Result<_, _>>()?;
-    let any_pixel =
-        |g: &CameraGeometry| -> Vec<bool> { g.point_m.iter().map(|p| p[0].is_finite()).collect() };
+    if truth.cameras.len() < recons.len() {
+        return Err(ScanError::TruthHeads {
+            heads: recons.len(),
+            truths: truth.cameras.len(),
+        });
+    }
+    truth.validate()?;
+    let geometries = &truth.cameras[..recons.len()];
     let fused_pts = points_f64(fused);
-    let true_a_from_world = twin_truth::head_from_world(twin.rig(), 0);
+    let true_a_from_world = truth.head_from_world(0);
     let truth_in_true_a: Vec<Sample> = geometries
         .iter()
-        .flat_map(|g| metrics::samples(g.geometry(), &any_pixel(g.geometry()), &true_a_from_world))
+        .flat_map(|g| metrics::samples(g, &g.has_surface(), &true_a_from_world))
         .collect();
     let fused_fit = fit_frame(
         &fused_pts,
@@ -82,25 +64,23 @@ pub fn measure(
     let a_from_world = fused_fit.frame_from_world;
     let mut surface: Vec<Sample> = Vec::new();
     let mut all_surface: Vec<Sample> = Vec::new();
-    for (h, g) in geometries.iter().enumerate() {
-        let g = g.geometry();
-        let own = metrics::own_object_pixels(g, h, &truth.is_object);
-        surface.extend(metrics::samples(g, &own, &a_from_world));
-        all_surface.extend(metrics::samples(g, &any_pixel(g), &a_from_world));
+    for g in geometries {
+        surface.extend(metrics::samples(g, &g.own_object, &a_from_world));
+        all_surface.extend(metrics::samples(g, &g.has_surface(), &a_from_world));
     }
     let mut heads = Vec::new();
     for (h, recon) in recons.iter().enumerate() {
-        let g = geometries[h].geometry();
-        let true_head_from_world = twin_truth::head_from_world(twin.rig(), h);
+        let g = &geometries[h];
+        let true_head_from_world = truth.head_from_world(h);
         let frame_fit = fit_frame(
             &points_f64(&recon.cloud),
-            &metrics::samples(g, &any_pixel(g), &true_head_from_world),
+            &metrics::samples(g, &g.has_surface(), &true_head_from_world),
             &true_head_from_world,
-            &format!("head {}", twin_truth::HEAD_NAMES[h]),
+            &format!("head {}", HEAD_NAMES[h]),
             warnings,
         );
         let head_from_world = frame_fit.frame_from_world;
-        let accuracy = metrics::pixel_accuracy(recon, g, &head_from_world, h, &truth.is_object);
+        let accuracy = metrics::pixel_accuracy(recon, g, &head_from_world);
         let overlap = metrics::masked_accuracy(recon, g, &head_from_world, &g.overlap);
         let a_from_head = a_from_world * head_from_world.inverse();
         let pts = points_f64(&transformed(&recon.cloud, &a_from_head));
@@ -116,7 +96,7 @@ pub fn measure(
                 .map(|m| aliasing::agreement(m, &g.overlap)),
         });
     }
-    let true_a_from_b = twin_truth::b_from_a(twin.rig()).inverse();
+    let true_a_from_b = truth.b_from_a(0, 1).inverse();
     // The pose used maps B's calibrated frame into A's; in true frames:
     let used_in_true_frames = heads[0].frame_fit.true_from_estimate
         * a_from_b_used
@@ -157,7 +137,7 @@ pub fn predicted_rms_m(recon: &Reconstruction) -> f64 {
 /// |reconstructed - true| per pixel, metres (NaN where either is missing).
 fn error_map(
     recon: &Reconstruction,
-    truth: &CameraGeometry,
+    truth: &CameraTruth,
     head_from_world: &Isometry3<f64>,
 ) -> Raster<f32> {
     let data = recon

@@ -1,6 +1,6 @@
-//! Accuracy and coverage of a simulated scan against the digital twin's
-//! per-pixel ground truth (true surface point, normal, object id, and which
-//! projector lights each pixel).
+//! Accuracy and coverage of a scan against a per-pixel ground truth
+//! ([`super::truth::CameraTruth`]: true surface point, normal, the object
+//! pixels each head's own projector lights; the twin's or a measured one).
 //!
 //! - Per head, `rmse_um`: each valid pixel's point against the true surface
 //!   point of that very pixel (same camera ray), all valid pixels counted.
@@ -12,10 +12,10 @@
 //!   a sample when it has a point within [`COVERED_WITHIN_M`] of it. The
 //!   same denominator serves both heads and the fused cloud, so they compare.
 
-use hil_sim::twin::{CameraGeometry, Illum, Scene};
 use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 
+use super::truth::CameraTruth;
 use crate::fusion::{build_tree, nearest_within, FusionError};
 use crate::reconstruct::Reconstruction;
 use crate::unwrap::PixelStatus;
@@ -55,11 +55,6 @@ pub struct PixelAccuracy {
     pub predicted_rms_m: f64,
 }
 
-/// Which scene objects are "the object": all but those named `wall`.
-pub fn object_ids(scene: &Scene) -> Vec<bool> {
-    scene.objects.iter().map(|o| o.name != "wall").collect()
-}
-
 fn to_frame(frame_from_world: &Isometry3<f64>, p: &[f32; 3]) -> Vector3<f64> {
     let w = Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
     (frame_from_world * w).coords
@@ -77,13 +72,11 @@ pub fn point_error_m(
 }
 
 /// Compares a head's reconstruction (in its camera frame) with the truth of
-/// its camera; `projector` is the head's projector in the twin.
+/// its camera.
 pub fn pixel_accuracy(
     recon: &Reconstruction,
-    truth: &CameraGeometry,
+    truth: &CameraTruth,
     head_from_world: &Isometry3<f64>,
-    projector: usize,
-    is_object: &[bool],
 ) -> PixelAccuracy {
     let mut errors: Vec<f64> = recon
         .pixels
@@ -98,7 +91,7 @@ pub fn pixel_accuracy(
         .filter(|px| px.status == PixelStatus::Valid && px.sigma_m.is_finite())
         .map(|px| px.sigma_m as f64)
         .collect();
-    let lit = own_object_pixels(truth, projector, is_object);
+    let lit = &truth.own_object;
     let own_valid = lit
         .iter()
         .zip(recon.pixels.iter())
@@ -136,7 +129,7 @@ pub struct MaskedAccuracy {
 /// projectors), where the capture modes differ.
 pub fn masked_accuracy(
     recon: &Reconstruction,
-    truth: &CameraGeometry,
+    truth: &CameraTruth,
     head_from_world: &Isometry3<f64>,
     mask: &[bool],
 ) -> MaskedAccuracy {
@@ -162,24 +155,10 @@ fn rms(values: &[f64]) -> f64 {
     (values.iter().map(|e| e * e).sum::<f64>() / values.len() as f64).sqrt()
 }
 
-/// Pixels that see the object and are lit by `projector`.
-pub fn own_object_pixels(
-    truth: &CameraGeometry,
-    projector: usize,
-    is_object: &[bool],
-) -> Vec<bool> {
-    truth
-        .object
-        .iter()
-        .zip(&truth.projectors[projector].illum)
-        .map(|(&o, &il)| il == Illum::Lit && is_object.get(o as usize).copied().unwrap_or(false))
-        .collect()
-}
-
 /// True surface samples in the fused frame: every pixel of `truth` where
 /// `keep` holds, moved by `frame_from_world`.
 pub fn samples(
-    truth: &CameraGeometry,
+    truth: &CameraTruth,
     keep: &[bool],
     frame_from_world: &Isometry3<f64>,
 ) -> Vec<Sample> {

@@ -12,15 +12,16 @@
 //! ```
 //!
 //! [`run_on_rig`] does it on any rig ([`crate::rig`]'s traits) with a given
-//! calibration and an optional ground truth; [`run_sim`] builds the
-//! simulated rig and the twin's truth around it; on hardware the caller
-//! builds a [`crate::rig::hardware::HardwareRig`] and passes no truth (the
-//! report's truth figures are then null). Either returns a [`ScanResult`] in
-//! memory; [`output::write_scan`] writes it (every file via a temporary and
-//! a rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
+//! calibration and an optional ground truth (plain data, [`GroundTruth`]);
+//! `crate::sim::scan::run_sim` builds the simulated rig and the twin's truth
+//! around it; on hardware the caller builds a
+//! [`crate::rig::hardware::HardwareRig`] and passes no truth (the report's
+//! truth figures are then null). Either returns a [`ScanResult`] in memory;
+//! [`output::write_scan`] writes it (every file via a temporary and a
+//! rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
 
 pub mod aliasing;
-pub mod calibration_source;
+pub mod calibration_file;
 pub mod capture;
 mod clouds;
 mod fuse;
@@ -28,15 +29,11 @@ pub mod measure;
 pub mod metrics;
 pub mod output;
 pub mod plan;
+pub mod truth;
 pub mod truth_frame;
-pub mod twin_truth;
 
-use std::sync::Arc;
 use std::time::Instant;
 
-use hil_sim::board::SimBoardConfig;
-use hil_sim::twin::scenes::{built_in, Detail};
-use hil_sim::twin::{SensorModel, TwinError, TwinRig};
 use nalgebra::Isometry3;
 
 use crate::board::ClientConfig;
@@ -46,12 +43,13 @@ use crate::patterns::three_pitch_periods_px;
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
-use crate::rig::sim::{SimRig, SimRigConfig};
 use crate::rig::{Board, Camera, Projector, RigError};
-pub use calibration_source::{CalibrationSource, UsedCalibration};
 use clouds::{from_fusion, transformed};
-pub use measure::GroundTruth;
 use metrics::PixelAccuracy;
+pub use truth::{CameraTruth, GroundTruth};
+
+/// Head names in plan order.
+pub const HEAD_NAMES: [&str; 2] = ["A", "B"];
 
 /// How the two heads share time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,11 +64,10 @@ pub enum Mode {
     SimultaneousMultiplexed,
 }
 
-/// Everything a scan needs besides the rig and its calibration (the
-/// scene, seed and board settings serve the simulated rig only).
+/// Everything a scan needs besides the rig and its calibration.
 #[derive(Clone, Debug)]
 pub struct ScanConfig {
-    /// Built-in twin scene with two heads (e.g. `large-part`).
+    /// What is scanned, for the report: a twin scene's name, or "hardware".
     pub scene: String,
     /// Time sharing of the heads.
     pub mode: Mode,
@@ -89,27 +86,19 @@ pub struct ScanConfig {
     /// [`ReconstructConfig::shot_noise_share`]): each point's predicted
     /// sigma then follows its pixel's own level.
     pub shot_noise_share: f32,
-    /// Seed of device jitter and sensor noise.
-    pub seed: u64,
-    /// Simulated board faults (for failure tests).
-    pub board: SimBoardConfig,
     /// Timeouts of the board client.
     pub client: ClientConfig,
-    /// The simulated projectors' intensity response, displayed grey g ->
-    /// g^gamma (twin only; 1 = a DMD in pattern mode, about 2.2 through a
-    /// video input).
-    pub sim_projector_gamma: f64,
     /// Projector response the patterns are pre-compensated for (each grey
     /// level g sent as g^(1/gamma)); `None` sends linear patterns.
     pub precompensate_gamma: Option<f64>,
-    /// The calibration a simulated scan reconstructs with (default: the twin's truth).
-    pub calibration: CalibrationSource,
 }
 
 impl ScanConfig {
     /// Sequential scan of `scene` at 640x480 / 1280x800 with
-    /// [`default_periods_px`]. (Seed 000's 100/110/120/130 px set works
-    /// too, but its coarse fringes give about 5x the depth noise here.)
+    /// [`default_periods_px`], camera noise 0.01 at half scale, all of it
+    /// taken as read noise (the hardware CLI's defaults; a simulated scan
+    /// sets its twin sensor's figures). (Seed 000's 100/110/120/130 px set
+    /// works too, but its coarse fringes give about 5x the depth noise here.)
     pub fn new(scene: &str) -> Self {
         ScanConfig {
             scene: scene.to_string(),
@@ -118,17 +107,13 @@ impl ScanConfig {
             projector_px: (1280, 800),
             periods_px: default_periods_px(1280),
             steps: 4,
-            noise_sigma: noise_sigma(&sim_sensor()),
-            shot_noise_share: shot_noise_share(&sim_sensor()),
-            seed: 1,
-            board: SimBoardConfig::default(),
+            noise_sigma: 0.01,
+            shot_noise_share: 0.0,
             client: ClientConfig {
                 attempt_timeout: std::time::Duration::from_secs(2),
                 attempts: 3,
             },
-            sim_projector_gamma: 1.0,
             precompensate_gamma: None,
-            calibration: CalibrationSource::TwinTruth,
         }
     }
 }
@@ -141,45 +126,9 @@ pub fn default_periods_px(dmd_width_px: u32) -> Vec<f64> {
     three_pitch_periods_px(f64::from(dmd_width_px), 64).to_vec()
 }
 
-/// The simulated cameras' sensor: 12-bit mono with its exposure set so a
-/// full-on pattern on a white diffuser at the reference distance fills 70 %
-/// of the well over one pattern's display time.
-pub fn sim_sensor() -> SensorModel {
-    let mut sensor = SensorModel::mono12();
-    sensor.electrons_per_unit = 0.7 * sensor.full_well_e / plan::display_s();
-    sensor
-}
-
-/// The sensor's noise at half scale (shot + read, datasheet figures), in
-/// frame units: what the reconstruction's noise prediction assumes.
-pub fn noise_sigma(sensor: &SensorModel) -> f32 {
-    let half_e = 0.5 * sensor.full_well_e;
-    ((half_e + sensor.read_noise_e.powi(2)).sqrt() / sensor.full_well_e) as f32
-}
-
-/// The share of [`noise_sigma`]'s variance that is shot noise (the rest is
-/// read noise): what [`ReconstructConfig::shot_noise_share`] wants.
-pub fn shot_noise_share(sensor: &SensorModel) -> f32 {
-    let half_e = 0.5 * sensor.full_well_e;
-    (half_e / (half_e + sensor.read_noise_e.powi(2))) as f32
-}
-
 /// What can stop a scan.
 #[derive(Debug, thiserror::Error)]
 pub enum ScanError {
-    /// The scene could not be built or rendered.
-    #[error("digital twin")]
-    Twin(#[from] TwinError),
-    /// The scene has not the two heads a dual-head scan needs.
-    #[error("scene {scene} has {cameras} cameras and {projectors} projectors; a dual-head scan needs 2 of each")]
-    NotDualHead {
-        /// Scene name.
-        scene: String,
-        /// Cameras in its rig.
-        cameras: usize,
-        /// Projectors in its rig.
-        projectors: usize,
-    },
     /// A dual-head scan needs a calibration of two heads and the pose
     /// between them.
     #[error("the calibration has {heads} head(s) (or no head_to_head pose); a dual-head scan needs 2 heads and head_to_head")]
@@ -204,9 +153,6 @@ pub enum ScanError {
         /// Why.
         source: crate::demultiplex::DemuxError,
     },
-    /// The calibration file is unusable (checked before any capture).
-    #[error("calibration")]
-    Calibration(#[from] calibration_source::CalibrationSourceError),
     /// A pre-compensation gamma that is not a positive finite number.
     #[error("pre-compensation gamma {gamma} is not a positive finite number")]
     BadGamma {
@@ -233,20 +179,17 @@ pub enum ScanError {
     /// Writing the results failed (nothing half-written is left behind).
     #[error("writing the scan")]
     Output(#[from] output::OutputError),
-}
-
-/// Removes an earlier run's outputs from `dir` ([`output::remove_stale`]),
-/// runs [`run_sim`] and, only when it succeeded, writes the result into
-/// `dir` ([`output::write_scan`]): a failed scan leaves no `scan.ply` or
-/// `report.json`, neither its own nor an older one.
-pub fn scan_to_dir(
-    config: &ScanConfig,
-    dir: &std::path::Path,
-    progress: &mut dyn FnMut(Progress),
-) -> Result<crate::io::report::ScanReport, ScanError> {
-    output::remove_stale(dir)?;
-    let result = run_sim(config, progress)?;
-    Ok(output::write_scan(dir, &result)?)
+    /// The ground truth has fewer cameras than the scan has heads.
+    #[error("the ground truth has {truths} camera(s) for {heads} heads")]
+    TruthHeads {
+        /// Heads scanned.
+        heads: usize,
+        /// Cameras in the truth.
+        truths: usize,
+    },
+    /// The ground truth's per-pixel arrays do not fit its images.
+    #[error(transparent)]
+    TruthSize(#[from] truth::TruthSizeError),
 }
 
 /// A step of progress, for bars and logs.
@@ -354,96 +297,27 @@ pub struct ScanResult {
     pub warnings: Vec<String>,
 }
 
-struct Clock {
+/// Wall-clock time per stage, logged as each ends.
+pub(crate) struct Clock {
     last: Instant,
-    timings: Vec<(&'static str, f64)>,
+    pub(crate) timings: Vec<(&'static str, f64)>,
 }
 
 impl Clock {
-    fn start() -> Self {
+    pub(crate) fn start() -> Self {
         Clock {
             last: Instant::now(),
             timings: Vec::new(),
         }
     }
 
-    fn lap(&mut self, name: &'static str) {
+    pub(crate) fn lap(&mut self, name: &'static str) {
         let now = Instant::now();
         let ms = (now - self.last).as_secs_f64() * 1e3;
         tracing::info!(stage = name, ms = format_args!("{ms:.0}"), "stage done");
         self.timings.push((name, ms));
         self.last = now;
     }
-}
-
-/// Runs a dual-head scan on the simulated rig (board on a pty, twin
-/// cameras), reconstructing with the twin's true calibration and measuring
-/// against the twin's ground truth.
-pub fn run_sim(
-    config: &ScanConfig,
-    progress: &mut dyn FnMut(Progress),
-) -> Result<ScanResult, ScanError> {
-    let mut clock = Clock::start();
-    let detail = Detail {
-        camera: config.camera_px,
-        projector: config.projector_px,
-    };
-    if let Some(gamma) = config
-        .precompensate_gamma
-        .filter(|g| !(g.is_finite() && *g > 0.0))
-    {
-        return Err(ScanError::BadGamma { gamma });
-    }
-    let (scene, mut rig) = built_in(&config.scene, &detail)?;
-    for p in &mut rig.projectors {
-        p.gamma = config.sim_projector_gamma;
-    }
-    if rig.cameras.len() != 2 || rig.projectors.len() != 2 {
-        return Err(ScanError::NotDualHead {
-            scene: config.scene.clone(),
-            cameras: rig.cameras.len(),
-            projectors: rig.projectors.len(),
-        });
-    }
-    // Before anything is captured: a bad rig file ends the scan here.
-    let used = calibration_source::resolve(
-        &config.calibration,
-        &rig,
-        config.camera_px,
-        config.projector_px,
-    )?;
-    let twin = Arc::new(TwinRig::new(scene, rig)?);
-    progress(Progress::Stage {
-        name: "ray-cast cameras",
-        total: 2,
-    });
-    for cam in 0..2 {
-        twin.renderer(cam)?;
-        progress(Progress::Step);
-    }
-    progress(Progress::Done);
-    let mut sim = SimRig::start(
-        twin.clone(),
-        SimRigConfig {
-            board: config.board.clone(),
-            client: config.client,
-            sensor: sim_sensor(),
-            noise_seed: config.seed,
-        },
-    )?;
-    clock.lap("setup");
-    let truth = GroundTruth::new(twin);
-    let mut result = run_on_rig(
-        &mut sim,
-        &used.rig,
-        &used.description,
-        Some(&truth),
-        config,
-        progress,
-    )?;
-    result.calibration_vs_truth = used.vs_truth;
-    result.timings_ms.splice(0..0, clock.timings);
-    Ok(result)
 }
 
 /// Runs a dual-head scan on any rig: capture -> reconstruct (with
@@ -461,6 +335,12 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<ScanResult, ScanError> {
     let mut clock = Clock::start();
+    if let Some(gamma) = config
+        .precompensate_gamma
+        .filter(|g| !(g.is_finite() && *g > 0.0))
+    {
+        return Err(ScanError::BadGamma { gamma });
+    }
     let (Some(a_to_b), 2) = (calibration.head_to_head, calibration.heads.len()) else {
         return Err(ScanError::NotDualHeadCalibration {
             heads: calibration.heads.len(),
@@ -478,7 +358,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         total: 2,
     });
     for (h, head_frames) in captured.frames.iter().enumerate() {
-        let head_name = twin_truth::HEAD_NAMES[h];
+        let head_name = HEAD_NAMES[h];
         let mut rc_config = ReconstructConfig::new(config.periods_px.clone());
         rc_config.steps = captured.steps;
         rc_config.noise_sigma = config.noise_sigma * captured.noise_factor;
@@ -508,7 +388,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         name: "fuse",
         total: 1,
     });
-    let a_from_b_calibrated = calibration_source::isometry_from_pose(&a_to_b).inverse();
+    let a_from_b_calibrated = a_to_b.to_isometry().inverse();
     let fused = fuse::fuse(
         &recons[0].cloud,
         &recons[1].cloud,
@@ -564,7 +444,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
                 a_from_b_used
             };
             HeadResult {
-                name: twin_truth::HEAD_NAMES[h],
+                name: HEAD_NAMES[h],
                 first_frame: captured.raw[h][0].clone(),
                 cloud_in_a: transformed(&recon.cloud, &a_from_head),
                 predicted_rms_m: measure::predicted_rms_m(&recon),

@@ -22,7 +22,9 @@ use slscan::calibration::RigCalibration;
 use slscan::io::images::{load_gray, save_gray_png};
 use slscan::raster::Raster;
 use slscan::rig::folder_projector::pattern_file_name;
-use slscan::scan::{sim_sensor, twin_truth, ScanConfig};
+use slscan::scan::ScanConfig;
+use slscan::sim::scan::sim_sensor;
+use slscan::sim::truth as twin_truth;
 
 pub const CAMERA_PX: (u32, u32) = (200, 150);
 pub const HEADS: [&str; 2] = ["A", "B"];

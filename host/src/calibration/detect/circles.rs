@@ -222,8 +222,8 @@ fn local_plate(raw: &Plane, mask: &[bool], sigma: f64) -> Plane {
 mod tests {
     use super::*;
     use crate::calibration::rodrigues::pose_from_rodrigues;
-    use crate::calibration::synthetic::{render_circle_grid, RenderSettings};
     use crate::calibration::PinholeModel;
+    use crate::synth::targets::{render_circle_grid, RenderSettings};
     use nalgebra::{Point3, Vector3};
 
     const GRID: CircleGrid = CircleGrid {

@@ -276,8 +276,8 @@ fn refine_all(
 mod tests {
     use super::*;
     use crate::calibration::rodrigues::pose_from_rodrigues;
-    use crate::calibration::synthetic::{render_checkerboard, true_corners, RenderSettings};
     use crate::calibration::{Distortion, PinholeModel};
+    use crate::synth::targets::{render_checkerboard, true_corners, RenderSettings};
     use nalgebra::Vector3;
 
     fn camera(rvec: Vector3<f64>, t: Vector3<f64>) -> PinholeModel {

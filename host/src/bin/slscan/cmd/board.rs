@@ -3,7 +3,7 @@
 //! either way).
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
@@ -134,6 +134,27 @@ fn run_command(args: Args) -> anyhow::Result<()> {
     }
 }
 
+#[cfg(feature = "sim")]
+type SimulatedBoard = slscan::sim::board::PtyBoard;
+#[cfg(not(feature = "sim"))]
+type SimulatedBoard = std::convert::Infallible;
+
+/// Starts a simulated board on a pseudo-terminal: the board and its path.
+#[cfg(feature = "sim")]
+fn start_simulated_board(seed: u64) -> anyhow::Result<(SimulatedBoard, PathBuf)> {
+    let board = slscan::sim::board::PtyBoard::start(seed)
+        .context("starting the simulated board on a pseudo-terminal")?;
+    let Some(path) = board.path().map(std::path::Path::to_path_buf) else {
+        bail!("the simulated board has no pty path");
+    };
+    Ok((board, path))
+}
+
+#[cfg(not(feature = "sim"))]
+fn start_simulated_board(_seed: u64) -> anyhow::Result<(SimulatedBoard, PathBuf)> {
+    Err(super::no_simulator("board --sim"))
+}
+
 /// Connects (starting the simulated board first with `--sim`), shakes hands
 /// and hands the client to `job`.
 fn with_board(
@@ -144,22 +165,14 @@ fn with_board(
         attempt_timeout: Duration::from_millis(connection.timeout_ms.max(1)),
         attempts: connection.attempts.max(1),
     };
-    // Held until the job ends: dropping it stops the simulated board.
-    let mut simulated = None;
+    // Held until the job ends (dropped after the client, declared before
+    // it): dropping it stops the simulated board.
+    let mut _simulated = None;
     let path: PathBuf = match (&connection.port, connection.sim) {
         (Some(port), _) => port.clone(),
         (None, true) => {
-            let config = hil_sim::board::SimBoardConfig {
-                seed: connection.sim_seed,
-                ..Default::default()
-            };
-            let board = hil_sim::board::spawn_on_pty(config)
-                .context("starting the simulated board on a pseudo-terminal")?;
-            let path = board.path().map(Path::to_path_buf);
-            simulated = Some(board);
-            let Some(path) = path else {
-                bail!("the simulated board has no pty path");
-            };
+            let (board, path) = start_simulated_board(connection.sim_seed)?;
+            _simulated = Some(board);
             eprintln!("slscan: simulated board on {}", path.display());
             path
         }
@@ -170,7 +183,6 @@ fn with_board(
         .with_context(|| format!("handshake with the board on {}", path.display()))?;
     let result = job(&mut client, &info);
     drop(client);
-    drop(simulated);
     result
 }
 

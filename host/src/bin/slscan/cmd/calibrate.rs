@@ -6,104 +6,66 @@
 //! `STEM.phase_y.npy`, and the whole head (camera, projector, camera ->
 //! projector) is written as a rig file; without it only the camera is
 //! calibrated and written as a camera file. `--sim` renders the views with
-//! the digital twin instead (`calibration::twin_head`: the twin's single
+//! the digital twin instead (`calibrate_sim`, `sim::calibration::twin_head`: the twin's single
 //! head, 640x480 camera, 1280x800 DMD, its 8x6-corner 20 mm checkerboard,
 //! x/y fringe phase maps decoded and unwrapped by slscan) and prints the
 //! recovered values next to the twin's true devices.
 
-use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use hil_sim::twin::scenes::Detail;
-use hil_sim::twin::SensorModel;
 use serde::Serialize;
 use slscan::calibration::board::{Checkerboard, CircleGrid, GrayImage, Target};
 use slscan::calibration::bundle::CameraCalibrationOptions;
 use slscan::calibration::detect::load_gray;
 use slscan::calibration::head::{
-    calibrate_camera_stage, calibrate_head, calibrate_head_to_head, BoardCapture, CameraStage,
-    HeadCalibration, HeadOptions, ProjectorSpec,
+    calibrate_camera_stage, calibrate_head, BoardCapture, CameraStage, HeadOptions, ProjectorSpec,
 };
-use slscan::calibration::rodrigues::rotation_angle_between;
-use slscan::calibration::synthetic::BitDepth;
-use slscan::calibration::twin_head::{self, TwinHead};
-use slscan::calibration::{write_rig, Head, PinholeModel, RigCalibration};
+use slscan::calibration::{write_rig, RigCalibration};
 use slscan::io::write_atomically;
+
+use super::calibrate_sim_options::SimOptions;
+use super::calibration_print::{print_camera_stage, print_head};
+use super::parse::parse_size;
 
 /// Options of `slscan calibrate`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Folder of board captures (PNG/TIFF, 8 or 16 bit), one board pose per file.
     #[arg(long, value_name = "DIR", required_unless_present = "sim")]
-    images: Option<PathBuf>,
+    pub(super) images: Option<PathBuf>,
     /// Render the views with the digital twin instead, and compare with its true devices.
     #[arg(long, conflicts_with = "images")]
-    sim: bool,
+    pub(super) sim: bool,
     /// Output JSON: a rig file (head calibrated) or a camera file (camera only).
     #[arg(long, short, value_name = "FILE")]
-    out: PathBuf,
+    pub(super) out: PathBuf,
     /// Calibration target in the images (ignored with --sim, which shows a checkerboard).
     #[arg(long, value_enum, default_value_t = TargetKind::Checkerboard)]
     target: TargetKind,
     /// Inner corners (or circles) along the board's x axis (ignored with --sim).
     #[arg(long, default_value_t = 9)]
-    cols: usize,
+    pub(super) cols: usize,
     /// Inner corners (or circles) along the board's y axis (ignored with --sim).
     #[arg(long, default_value_t = 6)]
-    rows: usize,
+    pub(super) rows: usize,
     /// Side of one square, or circle centre spacing, millimetres (ignored with --sim).
     #[arg(long, default_value_t = 25.0)]
-    square_mm: f64,
+    pub(super) square_mm: f64,
     /// Projector DMD size as WIDTHxHEIGHT; calibrates the projector from phase maps.
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
-    projector: Option<(u32, u32)>,
+    pub(super) projector: Option<(u32, u32)>,
     /// Fringe period of the phase maps, projector pixels.
     #[arg(long, default_value_t = 18.0)]
-    period_px: f64,
+    pub(super) period_px: f64,
     /// Name of the head in the rig file.
     #[arg(long, default_value = "A")]
-    head: String,
+    pub(super) head: String,
     /// Also estimate k3 (needs many well-spread views; default keeps k3 = 0).
     #[arg(long)]
-    with_k3: bool,
-    /// --sim: number of board poses (at most 15).
-    #[arg(long, default_value_t = 12)]
-    views: usize,
-    /// --sim: sensor read noise, grey levels (0..1), photon shot noise on top; default:
-    /// the twin's 12-bit sensor (6 e- of a 10 ke- full well, 0.0006).
-    #[arg(long)]
-    noise: Option<f64>,
-    /// --sim: bit depth of the rendered images (8 or 16).
-    #[arg(long, default_value_t = 8, value_parser = parse_bits)]
-    bits: u8,
-    /// --sim: simulate and calibrate two heads and their head-to-head pose.
-    #[arg(long, requires = "sim")]
-    two_heads: bool,
-    /// --sim: rays per camera pixel and axis of the board renders (each pixel
-    /// integrates over its area); 1 renders one aliased ray per pixel.
-    #[arg(long, default_value_t = hil_sim::twin::CALIBRATION_PIXEL_SAMPLES,
-          value_parser = clap::value_parser!(u32).range(1..=16))]
-    pixel_samples: u32,
-    /// --sim --two-heads / --scene: name of the second head.
-    #[arg(long, default_value = "B")]
-    head_b: String,
-    /// --sim: calibrate the two heads of this built-in dual-head twin scene (same
-    /// devices and head poses as `scan --sim --scene NAME`), e.g. `large-part`.
-    #[arg(
-        long,
-        value_name = "NAME",
-        requires = "sim",
-        conflicts_with = "two_heads"
-    )]
-    scene: Option<String>,
-    /// --sim --scene: camera image size as WIDTHxHEIGHT (must match the scan's).
-    #[arg(long, value_name = "WxH", value_parser = parse_size, default_value = "640x480")]
-    camera: (u32, u32),
-    /// --sim: also write the rendered board images (PNG) and phase maps (.npy) here
-    /// (one folder per head with --two-heads).
-    #[arg(long, value_name = "DIR")]
-    save_images: Option<PathBuf>,
+    pub(super) with_k3: bool,
+    #[command(flatten)]
+    pub(super) sim_options: SimOptions,
 }
 
 /// Which calibration target the images show.
@@ -115,30 +77,13 @@ enum TargetKind {
     Circles,
 }
 
-fn parse_bits(s: &str) -> Result<u8, String> {
-    match s.trim() {
-        "8" => Ok(8),
-        "16" => Ok(16),
-        other => Err(format!("{other:?}: bit depth is 8 or 16")),
-    }
-}
-
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("{s:?} is not WIDTHxHEIGHT"))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|n| *n > 0)
-            .ok_or_else(|| format!("{v:?} in {s:?} is not a positive integer"))
-    };
-    Ok((parse(w)?, parse(h)?))
-}
-
 /// Runs `slscan calibrate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    #[cfg(not(feature = "sim"))]
+    if args.sim {
+        // Before anything is made on disk.
+        return Err(super::no_simulator("calibrate --sim"));
+    }
     // Make the output's folder first: finding it missing after minutes of rendering and
     // solving would lose the work.
     if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
@@ -162,100 +107,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
+#[cfg(feature = "sim")]
 fn run_sim(args: &Args, options: &HeadOptions) -> anyhow::Result<()> {
-    if args.views < 3 {
-        bail!(
-            "--views {} is too few: a calibration with distortion needs >= 3",
-            args.views
-        );
-    }
-    let base = SensorModel::mono12();
-    let read_noise_e = match args.noise {
-        Some(n) if n.is_finite() && n >= 0.0 => n * base.full_well_e / base.gain,
-        Some(n) => bail!("--noise {n} is not a non-negative grey level"),
-        None => base.read_noise_e,
-    };
-    let sensor = SensorModel {
-        read_noise_e,
-        bits: args.bits,
-        ..base
-    };
-    if let Some(scene) = &args.scene {
-        let scene_args = super::calibrate_scene::SceneArgs {
-            scene,
-            camera_px: args.camera,
-            views: args.views,
-            names: [&args.head, &args.head_b],
-            pixel_samples: args.pixel_samples,
-            out: &args.out,
-        };
-        return super::calibrate_scene::run(&scene_args, &sensor, options);
-    }
-    let mut sim = TwinHead::standard(args.views, &Detail::default());
-    sim.pixel_samples = args.pixel_samples;
-    let bit_depth = if args.bits == 16 {
-        BitDepth::Sixteen
-    } else {
-        BitDepth::Eight
-    };
-    let target = Target::Checkerboard(twin_head::board());
-    let (second, true_head_to_head) = sim.second_head();
-    let mut heads = vec![(args.head.clone(), sim)];
-    if args.two_heads {
-        heads.push((args.head_b.clone(), second));
-    }
-    let mut calibrated = Vec::new();
-    let mut first_views = Vec::new();
-    for (name, sim) in &heads {
-        let captures = sim
-            .render(&sensor, 1, true)
-            .with_context(|| format!("rendering head {name} with the digital twin"))?;
-        if let Some(dir) = &args.save_images {
-            let dir = if args.two_heads {
-                dir.join(name)
-            } else {
-                dir.clone()
-            };
-            save_captures(&dir, &captures, bit_depth)?;
-        }
-        let cal = calibrate_head(name, &target, &captures, &sim.projector_spec(), options)
-            .with_context(|| format!("calibrating simulated head {name}"))?;
-        println!("== head {name}");
-        print_head(&cal);
-        print_truth_comparison(&sim.truth, &cal);
-        first_views.extend(captures.into_iter().next().map(|c| c.image));
-        calibrated.push(cal.head);
-    }
-    let head_to_head = match (args.two_heads, &calibrated[..], &first_views[..]) {
-        (true, [a, b], [img_a, img_b]) => {
-            // One board pose both heads saw: the first view.
-            let pair = calibrate_head_to_head(
-                &a.camera,
-                &b.camera,
-                &target,
-                &[(img_a.clone(), img_b.clone())],
-                options,
-            )
-            .context("head-to-head extrinsics")?;
-            let angle = rotation_angle_between(&pair.a_to_b.rotation, &true_head_to_head.rotation);
-            let dt = (pair.a_to_b.translation_m - true_head_to_head.translation_m).norm();
-            println!(
-                "head-to-head from one shared view: rms {:.4} px; recovered - true: rotation {:.4} deg, translation {:.3} mm",
-                pair.rms_px,
-                angle.to_degrees(),
-                dt * 1e3
-            );
-            Some(pair.a_to_b)
-        }
-        _ => None,
-    };
-    let rig = RigCalibration {
-        heads: calibrated,
-        head_to_head,
-    };
-    write_rig(&args.out, &rig).with_context(|| format!("writing {}", args.out.display()))?;
-    println!("wrote {}", args.out.display());
-    Ok(())
+    super::calibrate_sim::run(&args.sim_options, &args.head, &args.out, options)
+}
+
+#[cfg(not(feature = "sim"))]
+fn run_sim(_: &Args, _: &HeadOptions) -> anyhow::Result<()> {
+    Err(super::no_simulator("calibrate --sim"))
 }
 
 fn target_of(args: &Args) -> anyhow::Result<Target> {
@@ -357,126 +216,6 @@ fn load_phase_pair(dir: &Path, stem: &str) -> anyhow::Result<(GrayImage, GrayIma
     Ok((load("x")?, load("y")?))
 }
 
-fn save_captures(dir: &Path, captures: &[BoardCapture], depth: BitDepth) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    for c in captures {
-        let path = dir.join(format!("{}.png", c.name));
-        let dynamic = image::DynamicImage::ImageLuma16(image::ImageBuffer::from_fn(
-            c.image.width(),
-            c.image.height(),
-            |x, y| {
-                image::Luma([(c.image.get_pixel(x, y)[0].clamp(0.0, 1.0) * 65535.0).round() as u16])
-            },
-        ));
-        let dynamic = match depth {
-            BitDepth::Eight => image::DynamicImage::ImageLuma8(dynamic.to_luma8()),
-            BitDepth::Sixteen => dynamic,
-        };
-        let mut bytes = Vec::new();
-        dynamic
-            .write_to(&mut Cursor::new(&mut bytes), image::ImageFormat::Png)
-            .with_context(|| format!("encoding {}", path.display()))?;
-        write_atomically(&path, |w| w.write_all(&bytes))
-            .with_context(|| format!("writing {}", path.display()))?;
-        if let Some((px, py)) = &c.phase {
-            for (axis, map) in [("x", px), ("y", py)] {
-                let path = dir.join(format!("{}.phase_{axis}.npy", c.name));
-                slscan::calibration::phase_file::write_phase_map(&path, map)
-                    .with_context(|| format!("writing {}", path.display()))?;
-            }
-        }
-    }
-    println!("wrote {} views to {}", captures.len(), dir.display());
-    Ok(())
-}
-
-fn print_device(what: &str, d: &PinholeModel) {
-    let (k, dist) = (d.intrinsics, d.distortion);
-    println!(
-        "{what} {}x{}: fx {:.3} fy {:.3} cx {:.3} cy {:.3} | k1 {:.5} k2 {:.5} p1 {:.6} p2 {:.6} k3 {:.5}",
-        d.width_px, d.height_px, k.fx, k.fy, k.cx, k.cy, dist.k1, dist.k2, dist.p1, dist.p2, dist.k3
-    );
-}
-
-fn print_camera_stage(stage: &CameraStage) {
-    print_device("camera", &stage.camera);
-    println!("view            camera_rms_px");
-    for (name, rms) in stage.names.iter().zip(&stage.calibration.view_rms_px) {
-        println!("{name:<15} {rms:.4}");
-    }
-    for (name, err) in &stage.skipped {
-        println!("{name:<15} skipped: {err}");
-    }
-    println!("camera reprojection RMS {:.4} px", stage.calibration.rms_px);
-}
-
-pub(super) fn print_head(cal: &HeadCalibration) {
-    print_device("camera", &cal.head.camera);
-    print_device("projector", &cal.head.projector);
-    let t = cal.head.projector.pose.translation_m * 1e3;
-    println!(
-        "camera->projector: rotation {:.3} deg, translation ({:.2}, {:.2}, {:.2}) mm",
-        rotation_angle_between(
-            &nalgebra::Matrix3::identity(),
-            &cal.head.projector.pose.rotation
-        )
-        .to_degrees(),
-        t.x,
-        t.y,
-        t.z
-    );
-    println!("view            camera_rms_px  projector_rms_px");
-    for e in &cal.head.view_errors {
-        println!(
-            "{:<15} {:<14.4} {:.4}",
-            e.view,
-            e.camera_rms_px,
-            e.projector_rms_px.unwrap_or(f64::NAN)
-        );
-    }
-    for (name, err) in &cal.camera.skipped {
-        println!("{name:<15} skipped: {err}");
-    }
-    println!(
-        "reprojection RMS: camera {:.4} px, projector {:.4} px (joint {:.4} px)",
-        cal.head.camera_rms_px().unwrap_or(f64::NAN),
-        cal.head.projector_rms_px().unwrap_or(f64::NAN),
-        cal.pair.rms_px
-    );
-}
-
-pub(super) fn print_truth_comparison(truth: &Head, cal: &HeadCalibration) {
-    let pairs = [
-        ("camera", &cal.head.camera, &truth.camera),
-        ("projector", &cal.head.projector, &truth.projector),
-    ];
-    println!("recovered - true (digital twin):");
-    for (what, got, truth) in pairs {
-        let (g, t) = (got.intrinsics, truth.intrinsics);
-        println!(
-            "  {what}: dfx {:+.3} dfy {:+.3} dcx {:+.3} dcy {:+.3} px | dk1 {:+.5} dk2 {:+.5} dp1 {:+.6} dp2 {:+.6}",
-            g.fx - t.fx,
-            g.fy - t.fy,
-            g.cx - t.cx,
-            g.cy - t.cy,
-            got.distortion.k1 - truth.distortion.k1,
-            got.distortion.k2 - truth.distortion.k2,
-            got.distortion.p1 - truth.distortion.p1,
-            got.distortion.p2 - truth.distortion.p2,
-        );
-    }
-    let angle = rotation_angle_between(
-        &cal.head.projector.pose.rotation,
-        &truth.projector.pose.rotation,
-    );
-    let dt = (cal.head.projector.pose.translation_m - truth.projector.pose.translation_m).norm();
-    println!(
-        "  camera->projector: rotation {:.4} deg, translation {:.3} mm",
-        angle.to_degrees(),
-        dt * 1e3
-    );
-}
-
 /// The camera-only calibration file: the rig file's device fields (OpenCV
 /// names), without a projector.
 #[derive(Serialize)]
@@ -535,4 +274,15 @@ fn write_camera_file(path: &Path, stage: &CameraStage) -> anyhow::Result<()> {
     write_atomically(path, |w| w.write_all(text.as_bytes()))
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+#[cfg(all(test, feature = "sim"))]
+mod tests {
+    #[test]
+    fn pixel_samples_default_is_the_twins() {
+        assert_eq!(
+            super::super::calibrate_sim_options::CALIBRATION_PIXEL_SAMPLES,
+            slscan::sim::twin::CALIBRATION_PIXEL_SAMPLES
+        );
+    }
 }

@@ -1,20 +1,19 @@
 //! `slscan calibrate --sim --scene NAME`: calibrates both heads of a built-in
 //! dual-head twin scene from rendered checkerboard views
-//! (`calibration::twin_scene`), prints recovered against true values and
+//! (`sim::calibration::twin_scene`), prints recovered against true values and
 //! writes the rig file `scan --sim --calibration FILE` reads.
 
 use std::path::Path;
 use std::time::Instant;
 
 use anyhow::Context;
-use hil_sim::twin::scenes::Detail;
-use hil_sim::twin::SensorModel;
 use slscan::calibration::head::HeadOptions;
 use slscan::calibration::truth_error::{rig_error, PoseError};
-use slscan::calibration::twin_scene::{calibrate_scene, scene_heads};
 use slscan::calibration::{write_rig, PinholeModel};
+use slscan::sim::calibration::twin_scene::{calibrate_scene, scene_heads};
+use slscan::sim::twin::{Detail, SensorModel};
 
-use super::calibrate::{print_head, print_truth_comparison};
+use super::calibration_print::{print_head, print_truth_comparison};
 
 /// What to calibrate and where to write it.
 pub struct SceneArgs<'a> {

@@ -14,7 +14,7 @@ use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{FolderProjector, FolderProjectorHead, PatternDelivery};
 use slscan::rig::hardware::HardwareRig;
 use slscan::rig::serial_board::SerialBoard;
-use slscan::scan::{self, default_periods_px, CalibrationSource, Mode, Progress, ScanConfig};
+use slscan::scan::{self, default_periods_px, Mode, Progress, ScanConfig};
 
 /// Options of `slscan scan`.
 #[derive(clap::Args)]
@@ -148,19 +148,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )
     };
     let report = if args.sim {
-        let mut config = ScanConfig::new(&args.scene);
-        if let Some(path) = &args.calibration {
-            config.calibration = CalibrationSource::File(path.clone());
-        }
-        config.mode = mode;
-        config.camera_px = (args.width, args.height);
-        config.seed = args.seed;
-        config.sim_projector_gamma = args.sim_projector_gamma;
-        config.precompensate_gamma = args.precompensate_gamma;
-        if let Some(periods) = &args.periods {
-            config.periods_px = periods.clone();
-        }
-        scan::scan_to_dir(&config, &args.out, &mut on_progress).with_context(failed)?
+        scan_sim(&args, mode, &mut on_progress).with_context(failed)?
     } else {
         let (Some(port), Some(frames), Some(calibration)) =
             (&args.port, &args.frames_from, &args.calibration)
@@ -177,6 +165,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     print_summary(&report);
     println!("wrote {}", args.out.join("scan.ply").display());
     Ok(())
+}
+
+/// `--sim`: the simulated rig of `--scene`.
+#[cfg(feature = "sim")]
+fn scan_sim(
+    args: &Args,
+    mode: Mode,
+    progress: &mut dyn FnMut(Progress),
+) -> anyhow::Result<ScanReport> {
+    use slscan::sim::calibration_source::CalibrationSource;
+    use slscan::sim::scan::{scan_to_dir, SimScanConfig};
+    let mut config = SimScanConfig::new(&args.scene);
+    if let Some(path) = &args.calibration {
+        config.calibration = CalibrationSource::File(path.clone());
+    }
+    config.seed = args.seed;
+    config.sim_projector_gamma = args.sim_projector_gamma;
+    let scan = &mut config.scan;
+    scan.mode = mode;
+    scan.camera_px = (args.width, args.height);
+    scan.precompensate_gamma = args.precompensate_gamma;
+    if let Some(periods) = &args.periods {
+        scan.periods_px = periods.clone();
+    }
+    Ok(scan_to_dir(&config, &args.out, progress)?)
+}
+
+#[cfg(not(feature = "sim"))]
+fn scan_sim(_: &Args, _: Mode, _: &mut dyn FnMut(Progress)) -> anyhow::Result<ScanReport> {
+    Err(super::no_simulator("scan --sim"))
 }
 
 fn missing_hardware_args(args: &Args) -> Vec<&'static str> {

@@ -20,12 +20,13 @@ use hil_sim::twin::{
 };
 use nalgebra::Vector3;
 
-use super::board::{Checkerboard, GrayImage};
 use super::from_twin::{head_from_twin, pose_from_twin};
-use super::head::{BoardCapture, ProjectorSpec};
-use super::{Head, Pose};
+use crate::calibration::board::{Checkerboard, GrayImage};
+use crate::calibration::head::{BoardCapture, ProjectorSpec};
+use crate::calibration::{Head, Pose};
 use crate::phase::{PhaseShift, WrappedPhase};
 use crate::raster::Raster;
+use crate::synth::calibration_head::TILTS;
 use crate::unwrap::heterodyne::Heterodyne;
 
 /// Fringe periods of the phase maps, DMD pixels, finest first (beat 1320 px).
@@ -58,26 +59,6 @@ pub fn board() -> Checkerboard {
         square_m: CHECKERBOARD.square_m,
     }
 }
-
-/// Board tilts (Rodrigues vectors) as a person holds a board: up to about 20 degrees
-/// out of plane and turns in plane.
-pub(crate) const TILTS: [(f64, f64, f64); 15] = [
-    (0.0, 0.0, 0.0),
-    (0.3, 0.0, 0.05),
-    (-0.3, 0.05, -0.05),
-    (0.0, 0.35, 0.1),
-    (0.05, -0.35, -0.1),
-    (0.25, 0.25, 0.3),
-    (-0.25, -0.25, -0.3),
-    (0.2, -0.3, 0.5),
-    (-0.2, 0.3, -0.5),
-    (0.35, 0.1, 1.2),
-    (-0.1, -0.3, 1.57),
-    (0.15, 0.15, -1.4),
-    (0.3, -0.2, 0.2),
-    (-0.35, 0.2, 0.0),
-    (0.1, 0.3, -0.2),
-];
 
 impl TwinHead {
     /// The twin's single head at `detail` and `views` board poses (at most 15) at

@@ -12,6 +12,9 @@
 //! the Gaussian noise of known sigma, which is what the Cramér-Rao comparisons need. The
 //! digital twin (hil-sim) replaces this for realistic renders.
 
+pub mod calibration_head;
+pub mod targets;
+
 use nalgebra::{Point3, Vector3};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};

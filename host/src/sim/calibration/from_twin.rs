@@ -11,7 +11,7 @@
 
 use hil_sim::twin::{Pinhole, Rig};
 
-use super::{Distortion, Head, Intrinsics, PinholeModel, Pose};
+use crate::calibration::{Distortion, Head, Intrinsics, PinholeModel, Pose};
 
 /// A twin pose (`world_from_device`, an isometry) as slscan's world -> device [`Pose`].
 pub fn pose_from_twin(world_from_device: &hil_sim::twin::Pose) -> Pose {

@@ -1,6 +1,6 @@
 //! The simulated rig: hil-sim's board served on a real pseudo-terminal, the
 //! host's serial [`crate::board::BoardClient`] talking to it (through
-//! [`super::serial_board::SerialBoard`], as on hardware), and cameras
+//! [`crate::rig::serial_board::SerialBoard`], as on hardware), and cameras
 //! rendered by the digital twin ([`TwinRig`]).
 //!
 //! A camera frame is rendered from the board's executed timeline, not from
@@ -19,10 +19,10 @@ use protocol::ScanPlan;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::serial_board::SerialBoard;
-use super::{slots_per_frame, Board, Camera, Projector, RigError};
 use crate::board::{ClientConfig, ScanOutcome};
 use crate::raster::Raster;
+use crate::rig::serial_board::SerialBoard;
+use crate::rig::{slots_per_frame, Board, Camera, Projector, RigError};
 
 /// How to build a [`SimRig`].
 #[derive(Clone, Debug)]
@@ -55,8 +55,10 @@ impl SimRig {
     /// Starts a simulated board on a pty and connects the host's serial
     /// client to it (handshake done).
     pub fn start(twin: Arc<TwinRig>, config: SimRigConfig) -> Result<Self, RigError> {
-        let board =
-            spawn_on_pty(config.board).map_err(|e| RigError::Sim(format!("board pty: {e}")))?;
+        let board = spawn_on_pty(config.board).map_err(|e| RigError::Backend {
+            what: "simulated board on a pty".into(),
+            source: Box::new(e),
+        })?;
         let path = board.path().unwrap_or(Path::new("")).to_path_buf();
         let board_link = SerialBoard::open(&path, config.client)?;
         let heads = twin.rig().cameras.len();
@@ -243,7 +245,10 @@ impl Camera for SimRig {
             let (image, _saturated) = self
                 .twin
                 .image(head, &timelines, window, &self.sensor, &mut self.rng)
-                .map_err(|e| RigError::Sim(format!("twin camera {head}: {e}")))?;
+                .map_err(|e| RigError::Backend {
+                    what: format!("twin camera {head}"),
+                    source: Box::new(e),
+                })?;
             let data = if image.channels == 1 {
                 image.data
             } else {

@@ -16,14 +16,14 @@
 use hil_sim::twin::scenes::{built_in, single_head, Detail, CHECKERBOARD};
 use hil_sim::twin::{Rig, SensorModel, TwinError, V3};
 
-use super::board::Target;
-use super::extrinsics::PairCalibration;
 use super::from_twin::{head_from_twin, pose_from_twin};
-use super::head::{
+use super::twin_head::{self, TwinHead};
+use crate::calibration::board::Target;
+use crate::calibration::extrinsics::PairCalibration;
+use crate::calibration::head::{
     calibrate_head, calibrate_head_to_head, HeadCalibration, HeadError, HeadOptions,
 };
-use super::twin_head::{self, TwinHead};
-use super::{Head, Pose, RigCalibration};
+use crate::calibration::{Head, Pose, RigCalibration};
 
 /// Shared-view board poses tried in the overlap (centre x, y, z in metres; Rodrigues
 /// tilt): the board held where both cameras see it whole. Poses that either camera

@@ -1,7 +1,7 @@
-//! Formula-based renders of calibration views: a stand-in for the digital twin.
-//!
-//! PLACEHOLDER: until hil-sim's twin renders calibration scenes, tests and
-//! `slscan calibrate --sim` use these closed-form images instead. Each pixel
+//! Formula-based renders of calibration views (NOT the digital twin): the
+//! calibration kernel tests use these closed-form images to test detection
+//! and calibration in isolation (`slscan calibrate --sim` renders with the
+//! twin, `crate::sim::calibration`). Each pixel
 //! is integrated over `supersample^2` sub-pixel rays: the ray through the
 //! sub-pixel (after inverting the lens distortion) meets the board plane, and
 //! the checker colour there is averaged, so squares are anti-aliased exactly
@@ -14,8 +14,8 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 
-use super::board::{Checkerboard, CircleGrid, GrayImage};
-use super::PinholeModel;
+use crate::calibration::board::{Checkerboard, CircleGrid, GrayImage};
+use crate::calibration::PinholeModel;
 
 /// Sensor bit depth of a rendered view.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,17 +1,37 @@
 //! A simulated head with known truth, rendered by the formula-based renderer
-//! (`calibration::synthetic`, not the digital twin): the calibration kernel tests
+//! (`synth::targets`, not the digital twin): the calibration kernel tests
 //! (host/tests/calibration.rs) use it to test detection and calibration in isolation.
-//! `slscan calibrate --sim` and the twin accuracy tests use [`super::twin_head`].
+//! `slscan calibrate --sim` and the twin accuracy tests use `sim::calibration::twin_head`.
 //! Views sweep the board through tilts of up to about 20 degrees and
 //! in-plane turns, as a person would hold it, at 0.45..0.55 m.
 
 use nalgebra::Vector3;
 
-use super::board::Checkerboard;
-use super::head::{BoardCapture, ProjectorSpec};
-use super::rodrigues::pose_from_rodrigues;
-use super::synthetic::{render_checkerboard, render_phase_maps, RenderSettings};
-use super::{Distortion, Intrinsics, PinholeModel, Pose};
+use super::targets::{render_checkerboard, render_phase_maps, RenderSettings};
+use crate::calibration::board::Checkerboard;
+use crate::calibration::head::{BoardCapture, ProjectorSpec};
+use crate::calibration::rodrigues::pose_from_rodrigues;
+use crate::calibration::{Distortion, Intrinsics, PinholeModel, Pose};
+
+/// Board tilts (Rodrigues vectors) as a person holds a board: up to about 20 degrees
+/// out of plane and turns in plane.
+pub const TILTS: [(f64, f64, f64); 15] = [
+    (0.0, 0.0, 0.0),
+    (0.3, 0.0, 0.05),
+    (-0.3, 0.05, -0.05),
+    (0.0, 0.35, 0.1),
+    (0.05, -0.35, -0.1),
+    (0.25, 0.25, 0.3),
+    (-0.25, -0.25, -0.3),
+    (0.2, -0.3, 0.5),
+    (-0.2, 0.3, -0.5),
+    (0.35, 0.1, 1.2),
+    (-0.1, -0.3, 1.57),
+    (0.15, 0.15, -1.4),
+    (0.3, -0.2, 0.2),
+    (-0.35, 0.2, 0.0),
+    (0.1, 0.3, -0.2),
+];
 
 /// The truth of a simulated head and the board poses it is shown.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,7 +110,7 @@ impl SimHead {
             rows: 6,
             square_m: 0.025,
         };
-        let tilts = super::twin_head::TILTS;
+        let tilts = TILTS;
         let board_poses = tilts
             .iter()
             .take(views.min(tilts.len()))
