@@ -12,7 +12,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use slscan::board::ClientConfig;
-use slscan::calibration::write_rig;
+use slscan::calibration::{write_rig, RigCalibration};
 use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{
     pattern_file_name, FolderProjector, FolderProjectorHead, PatternDelivery,
@@ -40,13 +40,13 @@ fn config(mode: Mode) -> ScanConfig {
     config
 }
 
-/// The hardware rig on `port` with the test's folders.
+/// The hardware rig of `calibration`'s heads on `port` with the test's folders.
 fn hardware_rig(
     port: &Path,
     folders: &Folders,
     timeout: Duration,
+    calibration: &RigCalibration,
 ) -> Result<HardwareRig, RigError> {
-    let (_, calibration) = twin();
     let cameras = FolderCamera::new(FolderCameraConfig {
         root: folders.frames.clone(),
         heads: FolderHead::of_rig(calibration),
@@ -61,7 +61,12 @@ fn hardware_rig(
         PatternDelivery::Write,
     );
     let board = SerialBoard::open(port, ClientConfig::default())?;
-    Ok(HardwareRig::new(board, projector, cameras, 2))
+    Ok(HardwareRig::new(
+        board,
+        projector,
+        cameras,
+        calibration.heads.len(),
+    ))
 }
 
 /// A library-level hardware scan; measured against the twin when `truth`.
@@ -80,7 +85,7 @@ fn hardware_scan(
     };
     with_vendor_tools(name, fault, |port, folders| {
         let (twin, calibration) = twin();
-        let mut rig = hardware_rig(port, folders, Duration::from_secs(timeout))?;
+        let mut rig = hardware_rig(port, folders, Duration::from_secs(timeout), calibration)?;
         let truth = truth.then(|| ground_truth(twin, 2).expect("twin truth"));
         run_on_rig(
             &mut rig,
@@ -161,6 +166,43 @@ fn sequential_hardware_scan_reads_every_frame_in_order() {
             .join(pattern_file_name(12))
             .exists());
     }
+    let _ = std::fs::remove_dir_all(&folders.root);
+}
+
+#[test]
+fn a_one_head_hardware_rig_scans_with_its_head_alone() {
+    // Head A of the twin's rig as a one-head rig: the board triggers its
+    // camera and projector only, the folder camera reads A/ only.
+    let (result, folders) = with_vendor_tools("one-head", Fault::None, |port, folders| {
+        let (twin, calibration) = twin();
+        let one = RigCalibration::single(calibration.heads[0].clone());
+        let mut rig = hardware_rig(port, folders, Duration::from_secs(30), &one)?;
+        let truth = ground_truth(twin, 1).expect("twin truth");
+        run_on_rig(
+            &mut rig,
+            &one,
+            "head A of the twin truth as a rig file",
+            Some(&truth),
+            &config(Mode::Sequential),
+            &mut |_| {},
+        )
+    });
+    let result = result.expect("scan runs");
+    assert_eq!(result.heads.len(), 1);
+    let t = result.heads[0].truth.as_ref().expect("measured");
+    eprintln!(
+        "one head: RMSE {:.1} um (predicted {:.1} um), coverage {:.3}",
+        t.accuracy.rmse_m * 1e6,
+        t.accuracy.predicted_rms_m * 1e6,
+        t.coverage
+    );
+    assert!(t.accuracy.rmse_m < 200e-6, "{:?}", t.accuracy);
+    assert_eq!(t.accuracy.outliers, 0);
+    assert!(t.accuracy.own_coverage > 0.9, "{:?}", t.accuracy);
+    // The head's cloud is the scan; head B was never triggered.
+    assert_eq!(result.fused.cloud.len(), result.heads[0].cloud_in_a.len());
+    assert!(result.fused.icp.is_none());
+    assert!(!folders.patterns.join("B").exists());
     let _ = std::fs::remove_dir_all(&folders.root);
 }
 

@@ -6,4 +6,5 @@ mod estimated_calibration;
 mod faults;
 mod firmware_parity;
 mod scan_overlap;
+mod single_head;
 mod sync_chain;

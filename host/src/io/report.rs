@@ -38,6 +38,33 @@ pub struct HeadReport {
     /// Simultaneous mode: the overlap the flat fields measured against the
     /// twin's true overlap; null in the other modes and on hardware.
     pub aliased_mask: Option<AliasedMaskReport>,
+    /// Each sphere of known size this head saw, fitted (empty without any).
+    pub spheres: Vec<SphereReport>,
+    /// Fitted minus true distance of the first two spheres' centres,
+    /// micrometres (null unless this head fitted two).
+    pub sphere_centre_distance_error_um: Option<f64>,
+}
+
+/// One head's sphere fit of a sphere of known size.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct SphereReport {
+    /// The sphere's name in the truth.
+    pub name: String,
+    /// Valid points on it.
+    pub points: usize,
+    /// True radius, millimetres.
+    pub true_radius_mm: f64,
+    /// Fitted radius, millimetres.
+    pub radius_mm: f64,
+    /// Fitted minus true radius, micrometres.
+    pub radius_error_um: f64,
+    /// Distance of the fitted centre from the true one, micrometres.
+    pub centre_error_um: f64,
+    /// RMS of the fit's radial residuals, micrometres.
+    pub fit_rmse_um: f64,
+    /// Its physical limit: the points' predicted sigma carried onto the
+    /// sphere's normal, RMS, micrometres.
+    pub noise_limit_um: f64,
 }
 
 /// One camera's overlap as the flat fields measured it, against the truth.
@@ -192,6 +219,8 @@ mod tests {
             overlap_points: Some(0),
             overlap_rmse_um: Some(f64::NAN),
             aliased_mask: None,
+            spheres: Vec::new(),
+            sphere_centre_distance_error_um: None,
         };
         let report = ScanReport {
             scene: "x".into(),

@@ -1,6 +1,6 @@
 //! A rig file given to a scan (`slscan calibrate ... --out FILE`, or any
-//! rig file a user brings): read and checked against the scan (two heads,
-//! each device's image size) before anything is captured.
+//! rig file a user brings): read and checked against the scan (its head
+//! count, each device's image size) before anything is captured.
 
 use std::path::{Path, PathBuf};
 
@@ -12,13 +12,15 @@ pub enum CalibrationFileError {
     /// The rig file is missing, unreadable or invalid (missing field, NaN, ...).
     #[error(transparent)]
     File(#[from] RigFileError),
-    /// A dual-head scan needs a rig file with two heads.
-    #[error("rig file {path}: {heads} head(s); a dual-head scan needs 2")]
+    /// The rig file has another number of heads than the rig scanned.
+    #[error("rig file {path}: {heads} head(s); the rig scanned has {expected}")]
     HeadCount {
         /// The file.
         path: PathBuf,
         /// Heads in it.
         heads: usize,
+        /// Heads of the rig.
+        expected: usize,
     },
     /// A device in the file was calibrated at another image size than the scan uses.
     #[error("rig file {path}: head {head} {device} is {file_px:?} px, the scan's {device} is {scan_px:?} px")]
@@ -36,18 +38,20 @@ pub enum CalibrationFileError {
     },
 }
 
-/// Reads the rig file at `path` and checks it fits a dual-head scan with these
-/// camera and projector sizes.
+/// Reads the rig file at `path` and checks it fits a scan of `heads` heads
+/// with these camera and projector sizes.
 pub fn read_checked(
     path: &Path,
+    heads: usize,
     camera_px: (u32, u32),
     projector_px: (u32, u32),
 ) -> Result<RigCalibration, CalibrationFileError> {
     let rig = read_rig(path)?;
-    if rig.heads.len() != 2 {
+    if rig.heads.len() != heads {
         return Err(CalibrationFileError::HeadCount {
             path: path.to_owned(),
             heads: rig.heads.len(),
+            expected: heads,
         });
     }
     for head in &rig.heads {

@@ -1,7 +1,8 @@
-//! Capture of the two heads' frames for each mode, and their reduction to
-//! the plain N-step frames the per-head reconstruction reads.
+//! Capture of the heads' frames for each mode, and their reduction to the
+//! plain N-step frames the per-head reconstruction reads.
 //!
-//! - sequential: head A alone, then head B alone (two board runs).
+//! - sequential: head A alone, then head B alone (a board run each; a
+//!   one-head rig has head A's alone).
 //! - simultaneous-multiplexed: one board run, both heads at once, N = 8
 //!   steps per period, head A's shifts on temporal bin 1 and head B's on
 //!   bin 2 ([`crate::demultiplex`]). Each camera's 8 samples per period are
@@ -37,14 +38,16 @@ pub struct Captured {
     pub flat: Option<Vec<FlatFields>>,
 }
 
-/// Runs the board and cameras for `config.mode`.
+/// Runs the board and cameras of `heads` heads for `config.mode` (the
+/// simultaneous modes take two; [`super::check_before_capture`] says so).
 pub fn capture<R: Board + Projector + Camera>(
     rig: &mut R,
     config: &ScanConfig,
+    heads: usize,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Captured, ScanError> {
     match config.mode {
-        Mode::Sequential => sequential(rig, config, progress),
+        Mode::Sequential => sequential(rig, config, heads, progress),
         Mode::Simultaneous => simultaneous(rig, config, progress),
         Mode::SimultaneousMultiplexed => multiplexed(rig, config, progress),
     }
@@ -73,6 +76,7 @@ fn run(rig: &mut impl Board, plan: &protocol::ScanPlan, what: &str) -> Result<()
 fn sequential<R: Board + Projector + Camera>(
     rig: &mut R,
     config: &ScanConfig,
+    heads: usize,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Captured, ScanError> {
     let count = config.periods_px.len() * config.steps;
@@ -81,11 +85,11 @@ fn sequential<R: Board + Projector + Camera>(
         config,
     );
     let mut raw = Vec::new();
-    for (h, heads) in [HeadSet::A, HeadSet::B].into_iter().enumerate() {
+    for (h, set) in [HeadSet::A, HeadSet::B].into_iter().take(heads).enumerate() {
         let name = ["capture A", "capture B"][h];
         progress(Progress::Stage { name, total: 2 });
         rig.load_sequence(h, &patterns)?;
-        run(rig, &plan::one_pattern_per_exposure(heads, count)?, name)?;
+        run(rig, &plan::one_pattern_per_exposure(set, count)?, name)?;
         progress(Progress::Step);
         raw.push(rig.take_frames(h)?);
         progress(Progress::Step);

@@ -7,8 +7,9 @@ use nalgebra::Isometry3;
 
 use super::clouds::{points_f64, transformed};
 use super::metrics::{self, Sample};
+use super::spheres;
 use super::truth::{CameraTruth, GroundTruth};
-use super::truth_frame::fit_frame;
+use super::truth_frame::{fit_frame, FrameFit};
 use super::{aliasing, FusedTruth, HeadTruth, ScanError, HEAD_NAMES};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
@@ -27,8 +28,8 @@ pub struct Measured {
 
 /// Measures `recons` (each in its head's calibrated frame; each head alone,
 /// moved into head A's frame through its own frame fit) and `fused` (head
-/// A's calibrated frame), where `a_from_b_used` is the B->A pose fusion
-/// used. Every cloud is measured after a rigid fit of its calibrated frame
+/// A's calibrated frame), where `a_from_head[h]` is the pose fusion used for
+/// head `h` (identity for A). Every cloud is measured after a rigid fit of its calibrated frame
 /// onto the true one ([`super::truth_frame`]); fit problems go to `warnings`.
 /// `aliased_masks` are the overlaps the flat fields measured per head
 /// (simultaneous mode; else empty), compared with the truth's.
@@ -36,7 +37,7 @@ pub fn measure(
     truth: &GroundTruth,
     recons: &[Reconstruction],
     fused: &PointCloud,
-    a_from_b_used: &Isometry3<f64>,
+    a_from_head: &[Isometry3<f64>],
     aliased_masks: &[Vec<bool>],
     warnings: &mut Vec<String>,
 ) -> Result<Measured, ScanError> {
@@ -54,7 +55,19 @@ pub fn measure(
         .iter()
         .flat_map(|g| metrics::samples(g, &g.has_surface(), &true_a_from_world))
         .collect();
-    let fused_fit = fit_frame(
+    let fit = |cloud: &[nalgebra::Vector3<f64>],
+               samples: &[Sample],
+               true_from_world: &Isometry3<f64>,
+               what: &str,
+               warnings: &mut Vec<String>| {
+        if truth.calibration_is_true {
+            // The truth's own devices: the calibrated frames are the true ones.
+            FrameFit::exact(true_from_world)
+        } else {
+            fit_frame(cloud, samples, true_from_world, what, warnings)
+        }
+    };
+    let fused_fit = fit(
         &fused_pts,
         &truth_in_true_a,
         &true_a_from_world,
@@ -72,7 +85,7 @@ pub fn measure(
     for (h, recon) in recons.iter().enumerate() {
         let g = &geometries[h];
         let true_head_from_world = truth.head_from_world(h);
-        let frame_fit = fit_frame(
+        let frame_fit = fit(
             &points_f64(&recon.cloud),
             &metrics::samples(g, &g.has_surface(), &true_head_from_world),
             &true_head_from_world,
@@ -82,6 +95,7 @@ pub fn measure(
         let head_from_world = frame_fit.frame_from_world;
         let accuracy = metrics::pixel_accuracy(recon, g, &head_from_world);
         let overlap = metrics::masked_accuracy(recon, g, &head_from_world, &g.overlap);
+        let spheres = spheres::sphere_figures(recon, g, &truth.spheres, &head_from_world);
         let a_from_head = a_from_world * head_from_world.inverse();
         let pts = points_f64(&transformed(&recon.cloud, &a_from_head));
         heads.push(HeadTruth {
@@ -91,26 +105,32 @@ pub fn measure(
             accuracy,
             overlap,
             frame_fit,
+            spheres,
             aliased_mask: aliased_masks
                 .get(h)
                 .map(|m| aliasing::agreement(m, &g.overlap)),
         });
     }
-    let true_a_from_b = truth.b_from_a(0, 1).inverse();
     // The pose used maps B's calibrated frame into A's; in true frames:
-    let used_in_true_frames = heads[0].frame_fit.true_from_estimate
-        * a_from_b_used
-        * heads[1].frame_fit.true_from_estimate.inverse();
-    let diff = used_in_true_frames * true_a_from_b.inverse();
+    let residual_pose_error = match (&heads[..], a_from_head.get(1)) {
+        ([a, b], Some(a_from_b_used)) => {
+            let used_in_true_frames = a.frame_fit.true_from_estimate
+                * a_from_b_used
+                * b.frame_fit.true_from_estimate.inverse();
+            let diff = used_in_true_frames * truth.b_from_a(0, 1);
+            Some((
+                diff.rotation.angle().to_degrees(),
+                diff.translation.vector.norm(),
+            ))
+        }
+        _ => None,
+    };
     Ok(Measured {
         heads,
         fused: FusedTruth {
             plane_rmse_m: metrics::point_to_plane_rmse(&fused_pts, &all_surface)?,
             coverage: metrics::coverage(&fused_pts, &surface)?,
-            residual_pose_error: (
-                diff.rotation.angle().to_degrees(),
-                diff.translation.vector.norm(),
-            ),
+            residual_pose_error,
             frame_fit: fused_fit,
         },
         surface_samples: surface.len(),

@@ -29,6 +29,7 @@ pub mod measure;
 pub mod metrics;
 pub mod output;
 pub mod plan;
+pub mod spheres;
 pub mod truth;
 pub mod truth_frame;
 
@@ -129,12 +130,20 @@ pub fn default_periods_px(dmd_width_px: u32) -> Vec<f64> {
 /// What can stop a scan.
 #[derive(Debug, thiserror::Error)]
 pub enum ScanError {
-    /// A dual-head scan needs a calibration of two heads and the pose
-    /// between them.
-    #[error("the calibration has {heads} head(s) (or no head_to_head pose); a dual-head scan needs 2 heads and head_to_head")]
-    NotDualHeadCalibration {
+    /// A scan needs a calibration of one or two heads.
+    #[error("the calibration has {heads} head(s); a scan takes 1 or 2")]
+    HeadCount {
         /// Heads in the calibration.
         heads: usize,
+    },
+    /// Two heads need the pose between them.
+    #[error("the calibration has two heads but no head_to_head pose")]
+    NoHeadToHead,
+    /// Simultaneous modes share the time of two heads.
+    #[error("mode {mode:?} runs two heads at once; a one-head rig scans sequentially")]
+    ModeNeedsTwoHeads {
+        /// The mode asked for.
+        mode: Mode,
     },
     /// A camera delivered another number of flat-field frames than the
     /// plan's three.
@@ -246,6 +255,8 @@ pub struct HeadTruth {
     pub coverage: f64,
     /// How the head's calibrated frame was fitted onto the truth before measuring.
     pub frame_fit: truth_frame::FrameFit,
+    /// Each sphere of known size this head saw, fitted (frame fitted onto the truth).
+    pub spheres: Vec<spheres::SphereFigures>,
 }
 
 /// The fused result.
@@ -253,8 +264,9 @@ pub struct HeadTruth {
 pub struct FusedResult {
     /// The cloud, head A's frame.
     pub cloud: PointCloud,
-    /// Registration of B onto A (`None` when the heads share no surface,
-    /// as in simultaneous mode with the aliased overlap masked out).
+    /// Registration of B onto A (`None` with one head, and when the heads
+    /// share no surface, as in simultaneous mode with the aliased overlap
+    /// masked out).
     pub icp: Option<IcpResult>,
     /// Figures against the ground truth (`None` on hardware).
     pub truth: Option<FusedTruth>,
@@ -269,8 +281,8 @@ pub struct FusedTruth {
     pub coverage: f64,
     /// Error of the B->A pose used (ICP-refined, or calibrated without ICP)
     /// against the twin's true B->A, both heads' frames fitted onto the
-    /// truth: (degrees, metres).
-    pub residual_pose_error: (f64, f64),
+    /// truth: (degrees, metres); `None` with one head.
+    pub residual_pose_error: Option<(f64, f64)>,
     /// How head A's calibrated frame (the fused frame) was fitted onto the truth.
     pub frame_fit: truth_frame::FrameFit,
 }
@@ -285,9 +297,9 @@ pub struct ScanResult {
     /// An estimated calibration's error against the twin's truth (`None`
     /// with the truth itself, and on hardware).
     pub calibration_vs_truth: Option<crate::calibration::truth_error::RigTruthError>,
-    /// Heads A and B.
+    /// The heads, A (and B).
     pub heads: Vec<HeadResult>,
-    /// The fused cloud.
+    /// The fused cloud (one head: its cloud).
     pub fused: FusedResult,
     /// Samples of the measurable object surface (`None` without a truth).
     pub surface_samples: Option<usize>,
@@ -295,6 +307,33 @@ pub struct ScanResult {
     pub timings_ms: Vec<(&'static str, f64)>,
     /// Loud caveats of this run (masked aliased pixels, ...).
     pub warnings: Vec<String>,
+}
+
+/// What a scan refuses before touching the rig: a bad pre-compensation
+/// gamma, a calibration of no head or of more heads than the rig has names
+/// for, two heads without their head-to-head pose, and a mode that needs
+/// two heads on one.
+pub fn check_before_capture(
+    calibration: &RigCalibration,
+    config: &ScanConfig,
+) -> Result<(), ScanError> {
+    if let Some(gamma) = config
+        .precompensate_gamma
+        .filter(|g| !(g.is_finite() && *g > 0.0))
+    {
+        return Err(ScanError::BadGamma { gamma });
+    }
+    let heads = calibration.heads.len();
+    if heads == 0 || heads > HEAD_NAMES.len() {
+        return Err(ScanError::HeadCount { heads });
+    }
+    if heads == 2 && calibration.head_to_head.is_none() {
+        return Err(ScanError::NoHeadToHead);
+    }
+    if heads == 1 && config.mode != Mode::Sequential {
+        return Err(ScanError::ModeNeedsTwoHeads { mode: config.mode });
+    }
+    Ok(())
 }
 
 /// Wall-clock time per stage, logged as each ends.
@@ -320,12 +359,12 @@ impl Clock {
     }
 }
 
-/// Runs a dual-head scan on any rig: capture -> reconstruct (with
+/// Runs a scan on any rig of one or two heads: capture -> reconstruct (with
 /// `calibration`, described for the report by `calibration_source`) ->
-/// fuse, and, when a ground `truth` exists (the twin), measure against it.
-/// Without one (hardware) the report's truth figures are null.
-/// Simultaneous mode measures its aliased overlap from flat fields, so it
-/// runs on hardware too.
+/// fuse (two heads: ICP of B onto A; one head: its cloud is the scan), and,
+/// when a ground `truth` exists (the twin), measure against it. Without one
+/// (hardware) the report's truth figures are null. Simultaneous mode
+/// measures its aliased overlap from flat fields, so it runs on hardware too.
 pub fn run_on_rig<R: Board + Projector + Camera>(
     rig: &mut R,
     calibration: &RigCalibration,
@@ -335,18 +374,9 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<ScanResult, ScanError> {
     let mut clock = Clock::start();
-    if let Some(gamma) = config
-        .precompensate_gamma
-        .filter(|g| !(g.is_finite() && *g > 0.0))
-    {
-        return Err(ScanError::BadGamma { gamma });
-    }
-    let (Some(a_to_b), 2) = (calibration.head_to_head, calibration.heads.len()) else {
-        return Err(ScanError::NotDualHeadCalibration {
-            heads: calibration.heads.len(),
-        });
-    };
-    let mut captured = capture::capture(rig, config, progress)?;
+    check_before_capture(calibration, config)?;
+    let heads = calibration.heads.len();
+    let mut captured = capture::capture(rig, config, heads, progress)?;
     clock.lap("capture");
     let mut warnings = Vec::new();
     let aliased_masks = capture::mask_measured_overlap(&mut captured, &mut warnings);
@@ -355,7 +385,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     let mut recons = Vec::new();
     progress(Progress::Stage {
         name: "reconstruct",
-        total: 2,
+        total: heads as u64,
     });
     for (h, head_frames) in captured.frames.iter().enumerate() {
         let head_name = HEAD_NAMES[h];
@@ -383,24 +413,34 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     progress(Progress::Done);
     clock.lap("reconstruct");
 
-    // Fuse B into A, starting from the calibrated B -> A.
+    // Two heads: fuse B into A, starting from the calibrated B -> A. One
+    // head: nothing to register, its cloud is the scan.
     progress(Progress::Stage {
         name: "fuse",
         total: 1,
     });
-    let a_from_b_calibrated = a_to_b.to_isometry().inverse();
-    let fused = fuse::fuse(
-        &recons[0].cloud,
-        &recons[1].cloud,
-        &a_from_b_calibrated,
-        config,
-        &mut warnings,
-    )?;
-    let a_from_b_used = fused
-        .icp
-        .as_ref()
-        .map_or(a_from_b_calibrated, |icp| icp.transform);
-    let fused_cloud = from_fusion(&fused.cloud);
+    let (fused_cloud, icp, a_from_head) = match (&recons[..], calibration.head_to_head) {
+        ([a, b], Some(a_to_b)) => {
+            let a_from_b_calibrated = a_to_b.to_isometry().inverse();
+            let fused = fuse::fuse(
+                &a.cloud,
+                &b.cloud,
+                &a_from_b_calibrated,
+                config,
+                &mut warnings,
+            )?;
+            let a_from_b_used = fused
+                .icp
+                .as_ref()
+                .map_or(a_from_b_calibrated, |icp| icp.transform);
+            (
+                from_fusion(&fused.cloud),
+                fused.icp,
+                vec![Isometry3::identity(), a_from_b_used],
+            )
+        }
+        _ => (recons[0].cloud.clone(), None, vec![Isometry3::identity()]),
+    };
     progress(Progress::Step);
     progress(Progress::Done);
     clock.lap("fuse");
@@ -415,7 +455,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
                 truth,
                 &recons,
                 &fused_cloud,
-                &a_from_b_used,
+                &a_from_head,
                 &aliased_masks,
                 &mut warnings,
             )?;
@@ -432,25 +472,18 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             Some(m.fused),
             Some(m.surface_samples),
         ),
-        None => (vec![None, None], None, None),
+        None => ((0..heads).map(|_| None).collect::<Vec<_>>(), None, None),
     };
     let heads = recons
         .into_iter()
         .enumerate()
-        .map(|(h, recon)| {
-            let a_from_head = if h == 0 {
-                Isometry3::identity()
-            } else {
-                a_from_b_used
-            };
-            HeadResult {
-                name: HEAD_NAMES[h],
-                first_frame: captured.raw[h][0].clone(),
-                cloud_in_a: transformed(&recon.cloud, &a_from_head),
-                predicted_rms_m: measure::predicted_rms_m(&recon),
-                reconstruction: recon,
-                truth: head_truths[h].take(),
-            }
+        .map(|(h, recon)| HeadResult {
+            name: HEAD_NAMES[h],
+            first_frame: captured.raw[h][0].clone(),
+            cloud_in_a: transformed(&recon.cloud, &a_from_head[h]),
+            predicted_rms_m: measure::predicted_rms_m(&recon),
+            reconstruction: recon,
+            truth: head_truths[h].take(),
         })
         .collect();
     Ok(ScanResult {
@@ -460,7 +493,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         heads,
         fused: FusedResult {
             cloud: fused_cloud,
-            icp: fused.icp,
+            icp,
             truth: fused_truth,
         },
         surface_samples,

@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::spheres::{centre_distance_error_m, SphereFigures};
 use super::{Mode, ScanResult};
 use crate::io::cloud_render::{render_cloud, splat_radius_for, CloudView};
 use crate::io::images::save_rgb_png;
@@ -10,7 +11,7 @@ use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
     write_report, AliasedMaskReport, FrameFitReport, FrameOffset, FusedReport, HeadReport,
-    IcpReport, ReportError, ScanReport,
+    IcpReport, ReportError, ScanReport, SphereReport,
 };
 use crate::raster::Raster;
 
@@ -145,6 +146,11 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                         iou: a.iou,
                         recall: a.recall,
                     }),
+                    spheres: t
+                        .map_or_else(Vec::new, |t| t.spheres.iter().map(sphere_report).collect()),
+                    sphere_centre_distance_error_um: t
+                        .and_then(|t| centre_distance_error_m(&t.spheres))
+                        .map(|e| e * um),
                 }
             })
             .collect(),
@@ -160,12 +166,18 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                 iterations: icp.iterations,
                 converged: icp.converged,
             }),
-            pose_error_vs_truth_deg: scan.fused.truth.as_ref().map(|t| t.residual_pose_error.0),
+            pose_error_vs_truth_deg: scan
+                .fused
+                .truth
+                .as_ref()
+                .and_then(|t| t.residual_pose_error)
+                .map(|(deg, _)| deg),
             pose_error_vs_truth_um: scan
                 .fused
                 .truth
                 .as_ref()
-                .map(|t| t.residual_pose_error.1 * um),
+                .and_then(|t| t.residual_pose_error)
+                .map(|(_, m)| m * um),
         },
         warnings: scan.warnings.clone(),
         timings_ms: scan
@@ -173,6 +185,20 @@ pub fn report(scan: &ScanResult) -> ScanReport {
             .iter()
             .map(|(n, ms)| (n.to_string(), *ms))
             .collect(),
+    }
+}
+
+fn sphere_report(f: &SphereFigures) -> SphereReport {
+    let (mm, um) = (1e3, 1e6);
+    SphereReport {
+        name: f.name.clone(),
+        points: f.points,
+        true_radius_mm: f.true_radius_m * mm,
+        radius_mm: f.radius_m * mm,
+        radius_error_um: f.radius_error_m() * um,
+        centre_error_um: f.centre_error_m().norm() * um,
+        fit_rmse_um: f.fit_rmse_m * um,
+        noise_limit_um: f.noise_limit_m * um,
     }
 }
 

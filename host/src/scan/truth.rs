@@ -21,6 +21,9 @@ pub struct CameraTruth {
     pub point_m: Vec<[f32; 3]>,
     /// Per pixel: the true unit normal, world frame (NaN: no surface).
     pub normal: Vec<[f32; 3]>,
+    /// Per pixel: index of the truth's object seen there (`u16::MAX`: none);
+    /// [`TrueSphere::object`] refers to it.
+    pub object: Vec<u16>,
     /// Per pixel: sees the measured object (not the background) and is lit
     /// by this head's own projector: what the head should measure.
     pub own_object: Vec<bool>,
@@ -28,11 +31,30 @@ pub struct CameraTruth {
     pub overlap: Vec<bool>,
 }
 
+/// A sphere of known size in the scene (a calibration sphere).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrueSphere {
+    /// Its name, for the report.
+    pub name: String,
+    /// The object index the cameras' [`CameraTruth::object`] give it.
+    pub object: u16,
+    /// Centre, world frame, metres.
+    pub centre_m: [f64; 3],
+    /// Radius, metres.
+    pub radius_m: f64,
+}
+
 /// The truth of a whole scan: one [`CameraTruth`] per head, in head order.
 #[derive(Clone, Debug)]
 pub struct GroundTruth {
     /// Per head, its camera's truth.
     pub cameras: Vec<CameraTruth>,
+    /// Spheres of known size the scene holds (none is fine).
+    pub spheres: Vec<TrueSphere>,
+    /// Whether the scan reconstructs with the truth's own devices, so its
+    /// calibrated frames are the true ones (else each cloud's frame is
+    /// fitted onto the truth before measuring, `super::truth_frame`).
+    pub calibration_is_true: bool,
 }
 
 /// A truth whose per-pixel arrays do not match its image size.
@@ -65,6 +87,7 @@ impl GroundTruth {
             let lengths = [
                 ("point_m", c.point_m.len()),
                 ("normal", c.normal.len()),
+                ("object", c.object.len()),
                 ("own_object", c.own_object.len()),
                 ("overlap", c.overlap.len()),
             ];
@@ -106,6 +129,7 @@ mod tests {
             camera_from_world: Isometry3::translation(x_m, 0.0, 0.0),
             point_m: vec![[0.0, 0.0, 0.5]; pixels],
             normal: vec![[0.0, 0.0, -1.0]; pixels],
+            object: vec![0; pixels],
             own_object: vec![true; pixels],
             overlap: vec![false; pixels],
         }
@@ -115,6 +139,8 @@ mod tests {
     fn head_to_head_pose_comes_from_the_two_camera_poses() {
         let truth = GroundTruth {
             cameras: vec![camera(0.1, 2), camera(-0.2, 2)],
+            spheres: Vec::new(),
+            calibration_is_true: true,
         };
         truth.validate().unwrap();
         let t = truth.b_from_a(0, 1).translation.vector;
@@ -127,6 +153,8 @@ mod tests {
         bad.overlap.pop();
         let err = GroundTruth {
             cameras: vec![camera(0.0, 3), bad],
+            spheres: Vec::new(),
+            calibration_is_true: true,
         }
         .validate()
         .unwrap_err();

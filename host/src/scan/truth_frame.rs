@@ -11,7 +11,11 @@
 //! (point-to-plane ICP against the true surface, from the true camera
 //! pose): shape and scale errors stay in the RMSE, and the fit itself (the
 //! "frame offset") is reported. For the fused cloud one fit moves the whole
-//! cloud, so an error in the head-to-head pose still shows.
+//! cloud, so an error in the head-to-head pose still shows. A scan that
+//! reconstructs with the truth's own devices is measured in the true frames
+//! unfitted ([`FrameFit::exact`]): there is nothing to fit, and on a scene
+//! that pins fewer than six degrees of freedom (two spheres turn freely
+//! about the line through their centres) a fit would only drift.
 
 use nalgebra::{Isometry3, Vector3};
 
@@ -33,6 +37,14 @@ pub struct FrameFit {
 }
 
 impl FrameFit {
+    /// No fit: the estimated frame is the true one (`true_from_world`).
+    pub fn exact(true_from_world: &Isometry3<f64>) -> Self {
+        FrameFit {
+            frame_from_world: *true_from_world,
+            true_from_estimate: Isometry3::identity(),
+        }
+    }
+
     /// Rotation of the fit, degrees.
     pub fn rotation_deg(&self) -> f64 {
         self.true_from_estimate.rotation.angle().to_degrees()

@@ -5,7 +5,6 @@
 use std::path::PathBuf;
 
 use hil_sim::twin::Rig;
-use nalgebra::Isometry3;
 
 use super::truth;
 use crate::calibration::truth_error::{rig_error, RigTruthError};
@@ -34,27 +33,16 @@ pub struct UsedCalibration {
     pub vs_truth: Option<RigTruthError>,
 }
 
-impl UsedCalibration {
-    /// Head B's frame -> head A's frame, the ICP's initial guess.
-    pub fn a_from_b(&self) -> Isometry3<f64> {
-        let b_from_a = self
-            .rig
-            .head_to_head
-            .as_ref()
-            .expect("a checked dual-head rig has head_to_head");
-        b_from_a.to_isometry().inverse()
-    }
-}
-
-/// The calibration of `source` for a scan of the twin `twin_rig`, with the
-/// estimate's error against the twin's truth.
+/// The calibration of `source` for a scan of the twin `twin_rig`'s first
+/// `heads` heads, with the estimate's error against the twin's truth.
 pub fn resolve(
     source: &CalibrationSource,
     twin_rig: &Rig,
+    heads: usize,
     camera_px: (u32, u32),
     projector_px: (u32, u32),
 ) -> Result<UsedCalibration, CalibrationFileError> {
-    let truth = truth::twin_calibration(twin_rig, 2);
+    let truth = truth::twin_calibration(twin_rig, heads);
     Ok(match source {
         CalibrationSource::TwinTruth => {
             tracing::warn!(
@@ -67,7 +55,7 @@ pub fn resolve(
             }
         }
         CalibrationSource::File(path) => {
-            let rig = read_checked(path, camera_px, projector_px)?;
+            let rig = read_checked(path, heads, camera_px, projector_px)?;
             let vs_truth = rig_error(&rig, &truth);
             tracing::info!(file = %path.display(), "calibration: estimated, from the rig file");
             UsedCalibration {
@@ -100,12 +88,13 @@ mod tests {
         let used = resolve(
             &CalibrationSource::File(path.clone()),
             &rig,
+            2,
             detail.camera,
             detail.projector,
         )
         .unwrap();
         let want = truth::b_from_a(&rig).inverse();
-        let got = used.a_from_b();
+        let got = used.rig.head_to_head.unwrap().to_isometry().inverse();
         assert!((got.translation.vector - want.translation.vector).norm() < 1e-12);
         assert!(got.rotation.angle_to(&want.rotation) < 1e-9);
         let e = used.vs_truth.expect("estimate compared");
@@ -119,7 +108,7 @@ mod tests {
         let rig = dual_head(&detail);
         let path = temp("sizes.json");
         write_rig(&path, &truth::twin_calibration(&rig, 2)).unwrap();
-        let err = read_checked(&path, (320, 240), detail.projector).unwrap_err();
+        let err = read_checked(&path, 2, (320, 240), detail.projector).unwrap_err();
         assert!(matches!(
             err,
             CalibrationFileError::ImageSize {
@@ -129,14 +118,20 @@ mod tests {
                 ..
             }
         ));
-        let err = read_checked(&path, detail.camera, (912, 1140)).unwrap_err();
+        let err = read_checked(&path, 2, detail.camera, (912, 1140)).unwrap_err();
         assert!(err.to_string().contains("projector"), "{err}");
         write_rig(&path, &truth::twin_calibration(&rig, 1)).unwrap();
-        let err = read_checked(&path, detail.camera, detail.projector).unwrap_err();
+        let err = read_checked(&path, 2, detail.camera, detail.projector).unwrap_err();
         assert!(matches!(
             err,
-            CalibrationFileError::HeadCount { heads: 1, .. }
+            CalibrationFileError::HeadCount {
+                heads: 1,
+                expected: 2,
+                ..
+            }
         ));
+        // The same one-head file is right for a one-head scan.
+        read_checked(&path, 1, detail.camera, detail.projector).unwrap();
         std::fs::remove_file(&path).unwrap();
     }
 }

@@ -84,9 +84,9 @@ pub enum SimScanError {
     /// The scene could not be built or rendered.
     #[error("digital twin")]
     Twin(#[from] TwinError),
-    /// The scene has not the two heads a dual-head scan needs.
-    #[error("scene {scene} has {cameras} cameras and {projectors} projectors; a dual-head scan needs 2 of each")]
-    NotDualHead {
+    /// The scene's rig is not one or two camera-projector heads.
+    #[error("scene {scene} has {cameras} cameras and {projectors} projectors; a scan takes one or two heads (a camera and a projector each)")]
+    HeadCount {
         /// Scene name.
         scene: String,
         /// Cameras in its rig.
@@ -116,8 +116,8 @@ pub fn scan_to_dir(
     Ok(output::write_scan(dir, &result).map_err(ScanError::from)?)
 }
 
-/// Runs a dual-head scan on the simulated rig (board on a pty, twin
-/// cameras), reconstructing with the configured calibration and measuring
+/// Runs a scan of a one- or two-head twin scene on the simulated rig (board
+/// on a pty, twin cameras), reconstructing with the configured calibration and measuring
 /// against the twin's ground truth.
 pub fn run_sim(
     config: &SimScanConfig,
@@ -133,27 +133,36 @@ pub fn run_sim(
     for p in &mut rig.projectors {
         p.gamma = config.sim_projector_gamma;
     }
-    if rig.cameras.len() != 2 || rig.projectors.len() != 2 {
-        return Err(SimScanError::NotDualHead {
+    let heads = rig.cameras.len();
+    if !(1..=2).contains(&heads) || rig.projectors.len() != heads {
+        return Err(SimScanError::HeadCount {
             scene: scan.scene.clone(),
             cameras: rig.cameras.len(),
             projectors: rig.projectors.len(),
         });
     }
-    // Before anything is captured: a bad rig file ends the scan here.
-    let used =
-        calibration_source::resolve(&config.calibration, &rig, scan.camera_px, scan.projector_px)?;
+    // Before anything is captured: a bad rig file or a mode the rig cannot
+    // run ends the scan here.
+    let used = calibration_source::resolve(
+        &config.calibration,
+        &rig,
+        heads,
+        scan.camera_px,
+        scan.projector_px,
+    )?;
+    crate::scan::check_before_capture(&used.rig, scan)?;
     let twin = Arc::new(TwinRig::new(scene, rig)?);
     progress(Progress::Stage {
         name: "ray-cast cameras",
-        total: 2,
+        total: heads as u64,
     });
-    for cam in 0..2 {
+    for cam in 0..heads {
         twin.renderer(cam)?;
         progress(Progress::Step);
     }
     progress(Progress::Done);
-    let truth = ground_truth(&twin, 2)?;
+    let mut truth = ground_truth(&twin, heads)?;
+    truth.calibration_is_true = config.calibration == CalibrationSource::TwinTruth;
     let mut sim = SimRig::start(
         twin,
         SimRigConfig {

@@ -3,7 +3,8 @@
 //! estimated calibration, and reports say so), and its per-pixel surface
 //! truth as the plain [`GroundTruth`] that `scan::measure` takes.
 
-use hil_sim::twin::{CameraGeometry, Illum, Rig, Scene, TwinError, TwinRig};
+use hil_sim::twin::scene::Motion;
+use hil_sim::twin::{CameraGeometry, Illum, Rig, Scene, Shape, TwinError, TwinRig};
 use nalgebra::Isometry3;
 
 use super::calibration::from_twin::{head_from_twin, pose_from_twin};
@@ -11,8 +12,10 @@ use crate::calibration::RigCalibration;
 use crate::scan::{CameraTruth, GroundTruth, HEAD_NAMES};
 
 /// The twin's per-pixel truth of its first `heads` cameras (head `h` is
-/// camera `h` with projector `h`) as plain data. Every scene object but the
-/// one named `wall` is "the object".
+/// camera `h` with projector `h`) as plain data, for a scan reconstructed
+/// with an estimated calibration (its frames fitted onto the truth; set
+/// `calibration_is_true` when it uses the twin's own devices). Every scene
+/// object but the one named `wall` is "the object".
 pub fn ground_truth(twin: &TwinRig, heads: usize) -> Result<GroundTruth, TwinError> {
     let is_object = object_ids(twin.scene());
     let cameras = (0..heads)
@@ -26,7 +29,30 @@ pub fn ground_truth(twin: &TwinRig, heads: usize) -> Result<GroundTruth, TwinErr
             ))
         })
         .collect::<Result<_, TwinError>>()?;
-    Ok(GroundTruth { cameras })
+    Ok(GroundTruth {
+        cameras,
+        spheres: static_spheres(twin.scene()),
+        calibration_is_true: false,
+    })
+}
+
+/// The scene's spheres that stay where they are (a moving one has no one
+/// true centre for a whole scan).
+pub fn static_spheres(scene: &Scene) -> Vec<crate::scan::truth::TrueSphere> {
+    scene
+        .objects
+        .iter()
+        .enumerate()
+        .filter_map(|(k, o)| match (&o.shape, &o.motion) {
+            (Shape::Sphere { radius_m }, Motion::Static) => Some(crate::scan::truth::TrueSphere {
+                name: o.name.clone(),
+                object: u16::try_from(k).ok()?,
+                centre_m: o.pose.translation.vector.into(),
+                radius_m: *radius_m,
+            }),
+            _ => None,
+        })
+        .collect()
 }
 
 /// Which scene objects are "the object": all but those named `wall`.
@@ -57,6 +83,7 @@ fn camera_truth(
         camera_from_world,
         point_m: g.point_m.clone(),
         normal: g.normal.clone(),
+        object: g.object.clone(),
         own_object,
         overlap: g.overlap.clone(),
     }

@@ -1,4 +1,4 @@
-//! `slscan scan`: plan, capture, reconstruct and fuse a dual-head scan, on
+//! `slscan scan`: plan, capture, reconstruct and (with two heads) fuse a scan, on
 //! the simulated rig (`--sim`) or on hardware (`--port`, `--frames-from`,
 //! `--calibration`).
 
@@ -23,7 +23,7 @@ pub struct Args {
     /// Scan the simulated rig (board on a pty, digital-twin cameras).
     #[arg(long, conflicts_with_all = ["port", "frames_from"])]
     sim: bool,
-    /// Built-in twin scene with two heads (--sim).
+    /// Built-in twin scene of one or two heads (--sim; `hil-sim scenes` lists them).
     #[arg(long, default_value = "large-part")]
     scene: String,
     /// How the heads share time.
@@ -52,7 +52,7 @@ pub struct Args {
     /// one subfolder per head named as in the calibration (A/, B/).
     #[arg(long)]
     frames_from: Option<PathBuf>,
-    /// The rig calibration file (slscan-rig JSON, two heads): required on
+    /// The rig calibration file (slscan-rig JSON, one or two heads): required on
     /// hardware; with --sim, reconstruct with it and seed the ICP from it
     /// (`slscan calibrate --sim --scene NAME --out FILE`) instead of the
     /// digital twin's TRUE devices (the default, labelled so in the report).
@@ -294,8 +294,15 @@ fn hardware_config(
 }
 
 fn print_summary(report: &ScanReport) {
-    let f1 = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{v:.1}"));
-    let f3 = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{v:.3}"));
+    // A figure that does not exist (no truth, no points) reads "n/a", not NaN.
+    let f1 = |v: Option<f64>| {
+        v.filter(|v| v.is_finite())
+            .map_or("n/a".to_string(), |v| format!("{v:.1}"))
+    };
+    let f3 = |v: Option<f64>| {
+        v.filter(|v| v.is_finite())
+            .map_or("n/a".to_string(), |v| format!("{v:.3}"))
+    };
     for h in &report.heads {
         println!(
             "head {}: {} points, RMSE {} um (predicted {} um; median {} um, {} over 1 mm), coverage {}",
@@ -308,12 +315,29 @@ fn print_summary(report: &ScanReport) {
                 .map_or("n/a".to_string(), |n| n.to_string()),
             f3(h.coverage)
         );
-        if let (Some(points), Some(pixels)) = (h.overlap_points, h.overlap_pixels) {
+        if let (Some(points), Some(pixels @ 1..)) = (h.overlap_points, h.overlap_pixels) {
             println!(
                 "head {} overlap (pixels lit by both projectors): {points} of {pixels} pixels reconstructed, RMSE {} um",
                 h.name,
                 f1(h.overlap_rmse_um)
             );
+        }
+        for s in &h.spheres {
+            println!(
+                "head {} sphere {}: {} points, radius {:.4} mm (true {:.4}, error {:+.1} um), centre error {:.1} um, fit RMSE {:.1} um (noise limit {:.1} um)",
+                h.name,
+                s.name,
+                s.points,
+                s.radius_mm,
+                s.true_radius_mm,
+                s.radius_error_um,
+                s.centre_error_um,
+                s.fit_rmse_um,
+                s.noise_limit_um
+            );
+        }
+        if let Some(e) = h.sphere_centre_distance_error_um {
+            println!("head {} sphere centre distance error {e:+.1} um", h.name);
         }
         if let Some(m) = &h.aliased_mask {
             println!(
@@ -334,6 +358,9 @@ fn print_summary(report: &ScanReport) {
             "ICP correction of the calibrated pose: {:.4} deg / {:.1} um, overlap RMSE {:.1} um",
             icp.rotation_deg, icp.translation_um, icp.overlap_rmse_um
         ),
+        None if report.heads.len() == 1 => {
+            println!("one head: its cloud is the scan (nothing to register)")
+        }
         None => println!("no ICP: the heads share no usable surface; calibrated pose used"),
     }
     println!("calibration: {}", report.calibration);
@@ -370,7 +397,8 @@ fn print_calibration_vs_truth(report: &ScanReport) {
             );
         }
     }
-    if let Some(fit) = &report.truth_frame_fit {
+    // With the twin's own devices the frames are the true ones, not fitted.
+    if let (Some(fit), Some(_)) = (&report.truth_frame_fit, &report.calibration_vs_truth) {
         let heads: Vec<String> = fit
             .heads
             .iter()
