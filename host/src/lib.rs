@@ -17,6 +17,7 @@
 
 pub mod board;
 pub mod calibration;
+pub mod dealias;
 pub mod demultiplex;
 pub mod fit;
 pub mod fusion;

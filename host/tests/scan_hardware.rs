@@ -13,6 +13,7 @@ use std::time::Duration;
 
 use slscan::board::ClientConfig;
 use slscan::calibration::{write_rig, RigCalibration};
+use slscan::dealias::DealiasMethod;
 use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{
     pattern_file_name, FolderProjector, FolderProjectorHead, PatternDelivery,
@@ -34,6 +35,8 @@ fn config(mode: Mode) -> ScanConfig {
     let mut config = ScanConfig::new("hardware");
     config.mode = mode;
     config.camera_px = CAMERA_PX;
+    // Three periods: the simultaneous mode masks (analytic needs four).
+    config.dealias = DealiasMethod::Mask;
     // The camera noise the twin's sensor has, as a user gives it for theirs.
     config.noise_sigma = noise_sigma(&sim_sensor());
     config.shot_noise_share = shot_noise_share(&sim_sensor());
@@ -223,6 +226,7 @@ fn simultaneous_mode_masks_the_overlap_it_measures_without_a_twin() {
     // No ground truth: the aliased overlap comes from the flat-field
     // exposures the plan adds, which the vendor tools play like any other.
     let (result, folders) = hardware_scan("simultaneous", Mode::Simultaneous, Fault::None, false);
+    // `config` masks: the analytic de-aliaser needs four periods.
     let result = result.expect("simultaneous mode runs on hardware");
     assert!(
         result

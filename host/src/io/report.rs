@@ -38,11 +38,35 @@ pub struct HeadReport {
     /// Simultaneous mode: the overlap the flat fields measured against the
     /// twin's true overlap; null in the other modes and on hardware.
     pub aliased_mask: Option<AliasedMaskReport>,
+    /// Simultaneous mode: how the pixels the other projector lights were
+    /// treated; null in the other modes.
+    pub dealias: Option<DealiasReport>,
     /// Each sphere of known size this head saw, fitted (empty without any).
     pub spheres: Vec<SphereReport>,
     /// Fitted minus true distance of the first two spheres' centres,
     /// micrometres (null unless this head fitted two).
     pub sphere_centre_distance_error_um: Option<f64>,
+}
+
+/// One camera's de-aliasing of the simultaneous mode's overlap.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct DealiasReport {
+    /// `analytic` or `mask`.
+    pub method: String,
+    /// Pixels the other projector lights (grown).
+    pub affected_pixels: usize,
+    /// Of those, lit by the own projector too: the ones tried.
+    pub attempted_pixels: usize,
+    /// Separated and reconstructed from the own fringe.
+    pub separated_pixels: usize,
+    /// Refused as ill-posed (the two phasors too alike).
+    pub ill_posed_pixels: usize,
+    /// Refused as not fitting the two-projector model.
+    pub misfit_pixels: usize,
+    /// Refused with no consistent solution.
+    pub unsolved_pixels: usize,
+    /// Refused as disagreeing with every pair of separated neighbours.
+    pub inconsistent_pixels: usize,
 }
 
 /// One head's sphere fit of a sphere of known size.
@@ -219,6 +243,7 @@ mod tests {
             overlap_points: Some(0),
             overlap_rmse_um: Some(f64::NAN),
             aliased_mask: None,
+            dealias: None,
             spheres: Vec::new(),
             sphere_centre_distance_error_um: None,
         };

@@ -13,12 +13,16 @@
 //! - simultaneous: one run, both heads show identical 4-step sequences at
 //!   once, then three flat fields (both dark, A alone full on, B alone
 //!   full on); pixels the flat fields show lit by both projectors are
-//!   aliased and masked out ([`super::aliasing`]).
+//!   aliased: de-aliased ([`crate::dealias`]) or masked out
+//!   ([`super::aliasing`]).
 
 use protocol::HeadSet;
 
 use super::aliasing::{lighting, unusable_mask, AliasParams, FlatFields};
 use super::{plan, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
+use crate::dealias::{
+    dealias_frames, AnalyticDealiaser, AnalyticParams, DealiasMethod, DealiasStats,
+};
 use crate::demultiplex::{phase_shift_rad, Demultiplexer, DemuxError, TemporalBins};
 use crate::raster::Raster;
 use crate::rig::{Board, Camera, Projector};
@@ -242,46 +246,106 @@ fn demultiplexed_frames(
 
 /// Simultaneous mode with identical sequences: pixels lit by both
 /// projectors see aliased fringes, and pixels lit by the other head's
-/// projector alone see fringes of the wrong projector. With no de-aliaser
-/// yet all of them are masked out (frames zeroed there, so the
-/// reconstruction masks them), as the flat fields show them
-/// ([`unusable_mask`]), with a loud warning. Returns each head's measured
-/// aliased overlap (lit by both; empty without flat fields).
-pub fn mask_measured_overlap(
+/// projector alone see fringes of the wrong projector, as the flat fields
+/// show them ([`unusable_mask`]). With [`DealiasMethod::Analytic`] each
+/// camera's own fringe is separated where both light the pixel
+/// ([`crate::dealias`]) and the rest masked; with [`DealiasMethod::Mask`]
+/// all of them are masked (frames zeroed there, so the reconstruction masks
+/// them), with a loud warning. Returns each head's measured aliased overlap
+/// (lit by both; empty without flat fields) and its de-aliasing figures.
+pub fn resolve_measured_overlap(
     captured: &mut Captured,
+    config: &ScanConfig,
     warnings: &mut Vec<String>,
-) -> Vec<Vec<bool>> {
+) -> Result<(Vec<Vec<bool>>, Vec<DealiasStats>), ScanError> {
     let Some(flat) = &captured.flat else {
-        return Vec::new();
+        return Ok((Vec::new(), Vec::new()));
     };
     let params = AliasParams::default();
+    let solver = match config.dealias {
+        DealiasMethod::Analytic => Some(
+            AnalyticDealiaser::new(
+                &config.periods_px,
+                captured.steps,
+                config.projector_px.0,
+                AnalyticParams::default(),
+            )
+            .map_err(ScanError::Dealias)?,
+        ),
+        DealiasMethod::Mask => None,
+    };
     let mut overlaps = Vec::new();
+    let mut all_stats = Vec::new();
     for (h, (frames, flat)) in captured.frames.iter_mut().zip(flat).enumerate() {
         let both = lighting(flat, &params).both();
         let mask = unusable_mask(flat, h, &params);
-        let warning = format!(
-            "simultaneous mode: camera {} has {} pixels that the flat fields show lit by both \
-             projectors (aliased fringes); they and the pixels lit by the other head's projector \
-             alone, {} in all (grown by {} px), are MASKED OUT, since no de-aliaser (seed 000's \
-             learned one) exists yet",
-            HEAD_NAMES[h],
-            both.iter().filter(|&&b| b).count(),
-            mask.iter().filter(|&&m| m).count(),
-            params.grow_px
-        );
-        tracing::warn!("{warning}");
-        warnings.push(warning);
-        for f in frames.iter_mut() {
-            for (v, &m) in f.data.iter_mut().zip(&mask) {
-                if m {
-                    // Zero modulation: the reconstruction masks the pixel.
-                    *v = 0.0;
+        let both_count = both.iter().filter(|&&b| b).count();
+        let mask_count = mask.iter().filter(|&&m| m).count();
+        let Some(solver) = &solver else {
+            let warning = format!(
+                "simultaneous mode: camera {} has {both_count} pixels that the flat fields show lit \
+                 by both projectors (aliased fringes); they and the pixels lit by the other head's \
+                 projector alone, {mask_count} in all (grown by {} px), are MASKED OUT \
+                 (--dealias mask)",
+                HEAD_NAMES[h], params.grow_px
+            );
+            tracing::warn!("{warning}");
+            warnings.push(warning);
+            for f in frames.iter_mut() {
+                for (v, &m) in f.data.iter_mut().zip(&mask) {
+                    if m {
+                        // Zero modulation: the reconstruction masks the pixel.
+                        *v = 0.0;
+                    }
                 }
             }
+            overlaps.push(both);
+            all_stats.push(DealiasStats {
+                affected: mask_count,
+                ..DealiasStats::default()
+            });
+            continue;
+        };
+        let stats = dealias_frames(
+            frames,
+            flat,
+            h,
+            solver,
+            &params,
+            config.noise_sigma * captured.noise_factor,
+            config.shot_noise_share,
+        );
+        tracing::info!(
+            camera = HEAD_NAMES[h],
+            affected = stats.affected,
+            attempted = stats.attempted,
+            separated = stats.separated,
+            ill_posed = stats.ill_posed,
+            misfit = stats.misfit,
+            unsolved = stats.unsolved,
+            inconsistent = stats.inconsistent,
+            "de-aliased the overlap (analytic)"
+        );
+        let refused = stats.attempted - stats.separated;
+        if refused * 20 > stats.attempted.max(1) {
+            let warning = format!(
+                "simultaneous mode: camera {}: {refused} of {} overlap pixels could not be \
+                 de-aliased ({} ill-posed, {} misfit, {} unsolved, {} inconsistent with their \
+                 neighbours) and are masked",
+                HEAD_NAMES[h],
+                stats.attempted,
+                stats.ill_posed,
+                stats.misfit,
+                stats.unsolved,
+                stats.inconsistent
+            );
+            tracing::warn!("{warning}");
+            warnings.push(warning);
         }
         overlaps.push(both);
+        all_stats.push(stats);
     }
-    overlaps
+    Ok((overlaps, all_stats))
 }
 
 #[cfg(test)]

@@ -57,8 +57,8 @@ pub const HEAD_NAMES: [&str; 2] = ["A", "B"];
 pub enum Mode {
     /// Head A alone, then head B alone (seed 000's reference runs): no aliasing.
     Sequential,
-    /// Both heads at once with identical sequences: the overlap is aliased
-    /// and masked out (no de-aliaser yet).
+    /// Both heads at once with identical sequences: the overlap is aliased,
+    /// de-aliased per pixel or masked ([`ScanConfig::dealias`]).
     Simultaneous,
     /// Both at once, N = 8, head A's shifts at temporal frequency 1, B's at 2,
     /// separated per pixel by [`crate::demultiplex`].
@@ -92,6 +92,8 @@ pub struct ScanConfig {
     /// Projector response the patterns are pre-compensated for (each grey
     /// level g sent as g^(1/gamma)); `None` sends linear patterns.
     pub precompensate_gamma: Option<f64>,
+    /// Simultaneous mode: how pixels the other projector lights are treated.
+    pub dealias: crate::dealias::DealiasMethod,
 }
 
 impl ScanConfig {
@@ -115,6 +117,7 @@ impl ScanConfig {
                 attempts: 3,
             },
             precompensate_gamma: None,
+            dealias: crate::dealias::DealiasMethod::default(),
         }
     }
 }
@@ -125,6 +128,19 @@ impl ScanConfig {
 /// 000's 100/110/120/130 px set about 5x.)
 pub fn default_periods_px(dmd_width_px: u32) -> Vec<f64> {
     three_pitch_periods_px(f64::from(dmd_width_px), 64).to_vec()
+}
+
+/// The simultaneous mode's default with analytic de-aliasing: four periods
+/// of 73, 64, 56 and 50 fringes over the DMD width (17.5 / 20 / 22.9 /
+/// 25.6 px on 1280 px). Three periods give 6 real numbers per pixel for the
+/// 4 unknowns and leave many pixels with several solutions; these four
+/// beat down to one fringe over the width (differences 9, 8, 6; then 1, 2;
+/// then 1), so heterodyne unwraps each projector's phases.
+pub fn dealias_periods_px(dmd_width_px: u32) -> Vec<f64> {
+    [73.0, 64.0, 56.0, 50.0]
+        .iter()
+        .map(|fringes| f64::from(dmd_width_px) / fringes)
+        .collect()
 }
 
 /// What can stop a scan.
@@ -174,6 +190,15 @@ pub enum ScanError {
     /// Board, projector or camera failed (board silent, missing frame, ...).
     #[error("rig")]
     Rig(#[from] RigError),
+    /// Analytic de-aliasing needs more periods than the scan has.
+    #[error("analytic de-aliasing needs at least {} fringe periods (2 reals each for 4 unknowns, with margin), the scan has {periods}; give more --periods or --dealias mask", crate::dealias::analytic::MIN_PERIODS)]
+    DealiasPeriods {
+        /// Periods of the scan.
+        periods: usize,
+    },
+    /// The de-aliaser could not be set up for the period set.
+    #[error("de-aliaser")]
+    Dealias(#[source] crate::unwrap::UnwrapError),
     /// A head's reconstruction failed.
     #[error("reconstruct head {head}")]
     Reconstruct {
@@ -231,6 +256,8 @@ pub struct HeadResult {
     pub cloud_in_a: PointCloud,
     /// RMS of the predicted per-point sigma, metres (needs no truth).
     pub predicted_rms_m: f64,
+    /// Simultaneous mode: what de-aliasing (or masking) the overlap did.
+    pub dealias: Option<crate::dealias::DealiasStats>,
     /// Figures against the ground truth (`None` on hardware).
     pub truth: Option<HeadTruth>,
 }
@@ -333,6 +360,13 @@ pub fn check_before_capture(
     if heads == 1 && config.mode != Mode::Sequential {
         return Err(ScanError::ModeNeedsTwoHeads { mode: config.mode });
     }
+    let periods = config.periods_px.len();
+    if config.mode == Mode::Simultaneous
+        && config.dealias == crate::dealias::DealiasMethod::Analytic
+        && periods < crate::dealias::analytic::MIN_PERIODS
+    {
+        return Err(ScanError::DealiasPeriods { periods });
+    }
     Ok(())
 }
 
@@ -379,7 +413,11 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     let mut captured = capture::capture(rig, config, heads, progress)?;
     clock.lap("capture");
     let mut warnings = Vec::new();
-    let aliased_masks = capture::mask_measured_overlap(&mut captured, &mut warnings);
+    let (aliased_masks, dealias_stats) =
+        capture::resolve_measured_overlap(&mut captured, config, &mut warnings)?;
+    if captured.flat.is_some() {
+        clock.lap("de-alias");
+    }
 
     // Reconstruct each head in its own frame.
     let mut recons = Vec::new();
@@ -483,6 +521,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             cloud_in_a: transformed(&recon.cloud, &a_from_head[h]),
             predicted_rms_m: measure::predicted_rms_m(&recon),
             reconstruction: recon,
+            dealias: dealias_stats.get(h).copied(),
             truth: head_truths[h].take(),
         })
         .collect();

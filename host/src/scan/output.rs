@@ -10,8 +10,8 @@ use crate::io::images::save_rgb_png;
 use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
-    write_report, AliasedMaskReport, FrameFitReport, FrameOffset, FusedReport, HeadReport,
-    IcpReport, ReportError, ScanReport, SphereReport,
+    write_report, AliasedMaskReport, DealiasReport, FrameFitReport, FrameOffset, FusedReport,
+    HeadReport, IcpReport, ReportError, ScanReport, SphereReport,
 };
 use crate::raster::Raster;
 
@@ -145,6 +145,16 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                         true_overlap_pixels: a.truth,
                         iou: a.iou,
                         recall: a.recall,
+                    }),
+                    dealias: h.dealias.map(|d| DealiasReport {
+                        method: scan.config.dealias.name().into(),
+                        affected_pixels: d.affected,
+                        attempted_pixels: d.attempted,
+                        separated_pixels: d.separated,
+                        ill_posed_pixels: d.ill_posed,
+                        misfit_pixels: d.misfit,
+                        unsolved_pixels: d.unsolved,
+                        inconsistent_pixels: d.inconsistent,
                     }),
                     spheres: t
                         .map_or_else(Vec::new, |t| t.spheres.iter().map(sphere_report).collect()),

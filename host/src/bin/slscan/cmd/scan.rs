@@ -9,12 +9,13 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use slscan::board::ClientConfig;
 use slscan::calibration::{read_rig, RigCalibration};
+use slscan::dealias::DealiasMethod;
 use slscan::io::report::ScanReport;
 use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{FolderProjector, FolderProjectorHead, PatternDelivery};
 use slscan::rig::hardware::HardwareRig;
 use slscan::rig::serial_board::SerialBoard;
-use slscan::scan::{self, default_periods_px, Mode, Progress, ScanConfig};
+use slscan::scan::{self, dealias_periods_px, default_periods_px, Mode, Progress, ScanConfig};
 
 /// Options of `slscan scan`.
 #[derive(clap::Args)]
@@ -42,7 +43,9 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Fringe periods, projector pixels, finest first (4 steps each);
-    /// default: seed 004's three pitches over the DMD width (S = 64).
+    /// default: seed 004's three pitches over the DMD width (S = 64), and
+    /// for the simultaneous mode's analytic de-aliasing four periods of
+    /// 73 / 64 / 56 / 50 fringes over the width.
     #[arg(long, value_delimiter = ',')]
     periods: Option<Vec<f64>>,
     /// Hardware: the sync board's serial port, e.g. /dev/ttyACM0.
@@ -100,6 +103,29 @@ pub struct Args {
     /// (send grey^(1/gamma)).
     #[arg(long)]
     precompensate_gamma: Option<f64>,
+    /// Simultaneous mode: separate the two projectors' fringes per pixel
+    /// where both light it (analytic), or mask every pixel the other
+    /// projector lights (mask).
+    #[arg(long, value_enum, default_value_t = DealiasArg::Analytic)]
+    dealias: DealiasArg,
+}
+
+/// `--dealias` values.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum DealiasArg {
+    /// Per-pixel phasor separation from the four unknowns (two columns, two modulations).
+    Analytic,
+    /// Mask every pixel the other projector lights.
+    Mask,
+}
+
+impl From<DealiasArg> for DealiasMethod {
+    fn from(d: DealiasArg) -> Self {
+        match d {
+            DealiasArg::Analytic => DealiasMethod::Analytic,
+            DealiasArg::Mask => DealiasMethod::Mask,
+        }
+    }
 }
 
 const HARDWARE_HELP: &str = "\
@@ -119,14 +145,15 @@ not written but checked against what the scan needs.
 
 No ground truth on hardware: report.json's rmse and coverage figures are null. Simultaneous mode measures
 which pixels both projectors light from three flat-field exposures it adds after the fringes (both dark,
-A alone full on, B alone full on) and masks them out.";
+A alone full on, B alone full on), then separates the two fringes there (--dealias analytic,
+four periods by default) or masks them (--dealias mask).";
 
 /// `--mode` values.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 enum ModeArg {
     /// Head A alone, then head B alone.
     Sequential,
-    /// Both heads at once, identical sequences; pixels the flat fields show lit by the other projector masked out (no de-aliaser yet).
+    /// Both heads at once, identical sequences; the overlap de-aliased per pixel (--dealias), the rest the other projector lights masked.
     Simultaneous,
     /// Both at once, N = 8, head A on temporal bin 1, head B on bin 2, demultiplexed per pixel.
     SimultaneousMultiplexed,
@@ -186,15 +213,24 @@ fn scan_sim(
     scan.mode = mode;
     scan.camera_px = (args.width, args.height);
     scan.precompensate_gamma = args.precompensate_gamma;
-    if let Some(periods) = &args.periods {
-        scan.periods_px = periods.clone();
-    }
+    scan.dealias = args.dealias.into();
+    scan.periods_px = periods_for(args, mode, scan.projector_px.0);
     Ok(scan_to_dir(&config, &args.out, progress)?)
 }
 
 #[cfg(not(feature = "sim"))]
 fn scan_sim(_: &Args, _: Mode, _: &mut dyn FnMut(Progress)) -> anyhow::Result<ScanReport> {
     Err(super::no_simulator("scan --sim"))
+}
+
+/// `--periods`, or the mode's default: four periods for the simultaneous
+/// mode's analytic de-aliasing, seed 004's three pitches otherwise.
+fn periods_for(args: &Args, mode: Mode, dmd_width_px: u32) -> Vec<f64> {
+    match (&args.periods, mode, DealiasMethod::from(args.dealias)) {
+        (Some(p), ..) => p.clone(),
+        (None, Mode::Simultaneous, DealiasMethod::Analytic) => dealias_periods_px(dmd_width_px),
+        (None, ..) => default_periods_px(dmd_width_px),
+    }
 }
 
 fn missing_hardware_args(args: &Args) -> Vec<&'static str> {
@@ -283,13 +319,11 @@ fn hardware_config(
     config.mode = mode;
     config.camera_px = (a.camera.width_px, a.camera.height_px);
     config.projector_px = dmd;
-    config.periods_px = args
-        .periods
-        .clone()
-        .unwrap_or_else(|| default_periods_px(dmd.0));
+    config.periods_px = periods_for(args, mode, dmd.0);
     config.noise_sigma = args.noise_sigma;
     config.shot_noise_share = args.shot_noise_share;
     config.precompensate_gamma = args.precompensate_gamma;
+    config.dealias = args.dealias.into();
     Ok(config)
 }
 
@@ -338,6 +372,20 @@ fn print_summary(report: &ScanReport) {
         }
         if let Some(e) = h.sphere_centre_distance_error_um {
             println!("head {} sphere centre distance error {e:+.1} um", h.name);
+        }
+        if let Some(d) = &h.dealias {
+            println!(
+                "head {} de-aliasing ({}): {} pixels lit by the other projector, {} also by its own; {} separated, {} ill-posed, {} misfit, {} unsolved, {} inconsistent",
+                h.name,
+                d.method,
+                d.affected_pixels,
+                d.attempted_pixels,
+                d.separated_pixels,
+                d.ill_posed_pixels,
+                d.misfit_pixels,
+                d.unsolved_pixels,
+                d.inconsistent_pixels
+            );
         }
         if let Some(m) = &h.aliased_mask {
             println!(

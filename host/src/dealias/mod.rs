@@ -1,0 +1,218 @@
+//! De-aliasing of the simultaneous mode: both projectors show identical
+//! sequences at once, so in the overlap each camera sees the sum of two
+//! fringes. Each camera's own projector's fringe is recovered there and
+//! written back as plain N-step frames, so the unchanged reconstruction
+//! runs on them; what cannot be recovered is masked.
+//!
+//! ```text
+//! frames (K periods x N steps) + flat fields (dark, A on, B on)
+//!   -> lit by the own projector only: unchanged
+//!   -> lit by the other projector (and perhaps the own): analytic::separate per pixel
+//!        separated -> own fringe re-expressed as N frames;  refused -> masked
+//! ```
+//!
+//! [`DealiasMethod::Mask`] masks every pixel the other projector lights (the
+//! behaviour before a de-aliaser existed).
+
+pub mod analytic;
+
+use rayon::prelude::*;
+
+pub use analytic::{AnalyticDealiaser, AnalyticParams, Refused, Separated};
+
+use crate::raster::Raster;
+use crate::scan::aliasing::{lighting, unusable_mask, AliasParams, FlatFields};
+
+/// How the simultaneous mode treats pixels the other projector lights.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DealiasMethod {
+    /// Separate the two fringes per pixel ([`analytic`]).
+    #[default]
+    Analytic,
+    /// Mask every pixel the other projector lights.
+    Mask,
+}
+
+impl DealiasMethod {
+    /// The name the CLI and the report use.
+    pub fn name(self) -> &'static str {
+        match self {
+            DealiasMethod::Analytic => "analytic",
+            DealiasMethod::Mask => "mask",
+        }
+    }
+}
+
+/// What de-aliasing one camera's frames did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DealiasStats {
+    /// Pixels the other projector lights (grown), the ones that need it.
+    pub affected: usize,
+    /// Of those, lit by the own projector too: the ones tried.
+    pub attempted: usize,
+    /// Separated and written back.
+    pub separated: usize,
+    /// Refused: the phasors too alike.
+    pub ill_posed: usize,
+    /// Refused: the model did not fit.
+    pub misfit: usize,
+    /// Refused: no consistent solution.
+    pub unsolved: usize,
+    /// Refused: separated, but the own column disagrees with every pair of
+    /// separated neighbours (a wrong solution of a pixel whose equations
+    /// have several).
+    pub inconsistent: usize,
+}
+
+/// Pairs of opposite neighbours that must agree (of four): two, since a
+/// wrong solution sometimes has one wrong neighbour pair beside it.
+const MIN_AGREEING_PAIRS: usize = 2;
+
+/// Whether pixel `i`'s own column lies on the line through at least
+/// [`MIN_AGREEING_PAIRS`] pairs of opposite separated neighbours
+/// (left-right, up-down, the two diagonals), within 1 px plus four of its
+/// sigmas: a surface is smooth across three pixels, a wrong solution is
+/// tens of pixels off.
+fn agrees_with_neighbours(
+    own_px: &[f64],
+    width: usize,
+    height: usize,
+    i: usize,
+    sigma: f64,
+) -> bool {
+    let (x, y) = ((i % width) as isize, (i / width) as isize);
+    let at = |dx: isize, dy: isize| -> f64 {
+        let (u, v) = (x + dx, y + dy);
+        if u < 0 || v < 0 || u >= width as isize || v >= height as isize {
+            return f64::NAN;
+        }
+        own_px[v as usize * width + u as usize]
+    };
+    let tolerance = 1.0 + 4.0 * sigma;
+    let agreeing = [(1, 0), (0, 1), (1, 1), (1, -1)]
+        .iter()
+        .filter(|&&(dx, dy)| {
+            let mid = 0.5 * (at(dx, dy) + at(-dx, -dy));
+            (own_px[i] - mid).abs() <= tolerance
+        })
+        .count();
+    agreeing >= MIN_AGREEING_PAIRS
+}
+
+/// The noise of one sample at level `mean`, from the half-scale noise and
+/// its shot-noise share (shot variance grows with the level).
+fn sample_sigma(noise_sigma: f32, shot_share: f32, mean: f32) -> f64 {
+    let half = f64::from(noise_sigma).powi(2);
+    let share = f64::from(shot_share.clamp(0.0, 1.0));
+    (half * ((1.0 - share) + share * f64::from(mean.max(0.0)) / 0.5)).sqrt()
+}
+
+/// De-aliases head `own`'s camera frames in place (period-major, `K x N`
+/// as `solver` expects) with its flat fields: every pixel the other
+/// projector lights is either separated (its own fringe written back) or,
+/// when not lit by its own projector or refused, zeroed (zero modulation:
+/// the reconstruction masks it). `noise_sigma` and `shot_share` are the
+/// camera's noise (as `ReconstructConfig` has them).
+pub fn dealias_frames(
+    frames: &mut [Raster<f32>],
+    flat: &FlatFields,
+    own: usize,
+    solver: &AnalyticDealiaser,
+    params: &AliasParams,
+    noise_sigma: f32,
+    shot_share: f32,
+) -> DealiasStats {
+    let affected = unusable_mask(flat, own, params);
+    let lit = lighting(flat, params);
+    let own_lit = if own == 0 { &lit.lit_a } else { &lit.lit_b };
+    let (own_flat, other_flat) = if own == 0 {
+        (&flat.lit_a, &flat.lit_b)
+    } else {
+        (&flat.lit_b, &flat.lit_a)
+    };
+    let count = frames.len();
+    let pixels = flat.dark.data.len();
+    let results: Vec<(usize, Result<Separated, Refused>, Vec<f32>)> = (0..pixels)
+        .into_par_iter()
+        .filter(|&i| affected[i] && own_lit[i])
+        .map(|i| {
+            let samples: Vec<f32> = frames.iter().map(|f| f.data[i]).collect();
+            let mean = samples.iter().sum::<f32>() / count as f32;
+            let dark = flat.dark.data[i];
+            // Full-contrast fringes: half of each projector's full-on signal.
+            let a0 = 0.5 * f64::from(own_flat.data[i] - dark);
+            let b0 = 0.5 * f64::from(other_flat.data[i] - dark);
+            let sigma = sample_sigma(noise_sigma, shot_share, mean);
+            let solved = solver.separate(&samples, a0, b0, sigma);
+            (i, solved, own_fringe(solver, &solved, mean))
+        })
+        .collect();
+    let mut stats = DealiasStats {
+        affected: affected.iter().filter(|&&m| m).count(),
+        attempted: results.len(),
+        ..DealiasStats::default()
+    };
+    let (width, height) = (flat.dark.width, flat.dark.height);
+    let mut own_px = vec![f64::NAN; pixels];
+    for (i, solved, _) in &results {
+        if let Ok(s) = solved {
+            own_px[*i] = s.x_own_px;
+        }
+    }
+    let mut written = vec![false; pixels];
+    for (i, solved, fringe) in &results {
+        let solved = match solved {
+            Ok(s) if !agrees_with_neighbours(&own_px, width, height, *i, s.sigma_own_px) => {
+                stats.inconsistent += 1;
+                continue;
+            }
+            other => other,
+        };
+        match solved {
+            Ok(_) => {
+                stats.separated += 1;
+                written[*i] = true;
+                for (f, v) in frames.iter_mut().zip(fringe) {
+                    f.data[*i] = *v;
+                }
+            }
+            Err(Refused::IllPosed) => stats.ill_posed += 1,
+            Err(Refused::Misfit) => stats.misfit += 1,
+            Err(Refused::NoSolution) => stats.unsolved += 1,
+        }
+    }
+    for f in frames.iter_mut() {
+        for (i, v) in f.data.iter_mut().enumerate() {
+            if affected[i] && !written[i] {
+                // Zero modulation: the reconstruction masks the pixel.
+                *v = 0.0;
+            }
+        }
+    }
+    stats
+}
+
+/// The own projector's N-step fringe of a separated pixel, period-major,
+/// around the pixel's observed mean (so the reconstruction's shot-noise
+/// prediction counts both projectors' light); empty when refused.
+fn own_fringe(
+    solver: &AnalyticDealiaser,
+    solved: &Result<Separated, Refused>,
+    mean: f32,
+) -> Vec<f32> {
+    let Ok(s) = solved else {
+        return Vec::new();
+    };
+    let n = solver.steps();
+    let tau = std::f64::consts::TAU;
+    solver
+        .periods_px()
+        .iter()
+        .flat_map(|p| {
+            let phi = tau * s.x_own_px / p;
+            (0..n).map(move |k| {
+                (f64::from(mean) + s.a * (phi + tau * k as f64 / n as f64).cos()) as f32
+            })
+        })
+        .collect()
+}
