@@ -7,6 +7,7 @@ pub mod cloud_render;
 pub mod images;
 pub mod npy;
 pub mod ply;
+pub mod ply_read;
 pub mod report;
 
 use std::io::{BufWriter, Write};

@@ -20,7 +20,7 @@ pub(crate) fn to_fusion(cloud: &PointCloud) -> fusion::PointCloud {
 }
 
 /// A fused cloud for the PLY writer.
-pub(crate) fn from_fusion(cloud: &fusion::PointCloud) -> PointCloud {
+pub fn from_fusion(cloud: &fusion::PointCloud) -> PointCloud {
     PointCloud {
         points_m: cloud
             .points

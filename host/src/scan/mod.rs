@@ -23,7 +23,7 @@
 pub mod aliasing;
 pub mod calibration_file;
 pub mod capture;
-mod clouds;
+pub mod clouds;
 mod fuse;
 pub mod measure;
 pub mod metrics;

@@ -23,6 +23,10 @@ enum Command {
     Reconstruct(cmd::reconstruct::Args),
     /// Plan, capture and reconstruct a scan end to end.
     Scan(cmd::scan::Args),
+    /// Register cloud B onto cloud A (PLY files from any tool) by ICP.
+    Register(cmd::register::Args),
+    /// Register cloud B onto cloud A and merge them into one cloud.
+    Fuse(cmd::fuse::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -39,6 +43,8 @@ fn main() -> std::process::ExitCode {
         Command::Calibrate(args) => cmd::calibrate::run(args),
         Command::Reconstruct(args) => cmd::reconstruct::run(args),
         Command::Scan(args) => cmd::scan::run(args),
+        Command::Register(args) => cmd::register::run(args),
+        Command::Fuse(args) => cmd::fuse::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

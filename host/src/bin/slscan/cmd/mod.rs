@@ -8,9 +8,11 @@ pub mod calibrate_scene;
 pub mod calibrate_sim;
 pub mod calibrate_sim_options;
 pub mod calibration_print;
+pub mod fuse;
 pub mod parse;
 pub mod patterns;
 pub mod reconstruct;
+pub mod register;
 pub mod scan;
 
 /// The error of a `--sim` option in a build without the simulator.
