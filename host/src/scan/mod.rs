@@ -146,8 +146,9 @@ pub fn dealias_periods_px(dmd_width_px: u32) -> Vec<f64> {
 /// What can stop a scan.
 #[derive(Debug, thiserror::Error)]
 pub enum ScanError {
-    /// A scan needs a calibration of one or two heads.
-    #[error("the calibration has {heads} head(s); a scan takes 1 or 2")]
+    /// A scan needs a calibration of one head, or of as many as the sync
+    /// board has trigger lines for.
+    #[error("the calibration has {heads} head(s); the sync board drives 1 to {} (two trigger lines each, protocol::limits::MAX_HEADS)", protocol::limits::MAX_HEADS)]
     HeadCount {
         /// Heads in the calibration.
         heads: usize,
@@ -351,7 +352,7 @@ pub fn check_before_capture(
         return Err(ScanError::BadGamma { gamma });
     }
     let heads = calibration.heads.len();
-    if heads == 0 || heads > HEAD_NAMES.len() {
+    if heads == 0 || heads > protocol::limits::MAX_HEADS.min(HEAD_NAMES.len()) {
         return Err(ScanError::HeadCount { heads });
     }
     if heads == 2 && calibration.head_to_head.is_none() {
@@ -539,4 +540,61 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         timings_ms: clock.timings,
         warnings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::{Head, PinholeModel, Pose};
+
+    fn rig(heads: usize, head_to_head: bool) -> RigCalibration {
+        let head = |name: &str| Head {
+            name: name.into(),
+            camera: PinholeModel::ideal(64, 48, 80.0),
+            projector: PinholeModel::ideal(128, 80, 120.0),
+            view_errors: vec![],
+        };
+        RigCalibration {
+            heads: ["A", "B", "C"]
+                .iter()
+                .take(heads)
+                .map(|n| head(n))
+                .collect(),
+            head_to_head: head_to_head.then(Pose::identity),
+        }
+    }
+
+    #[test]
+    fn rigs_and_modes_the_board_cannot_run_are_refused_by_name() {
+        let config = ScanConfig::new("x");
+        check_before_capture(&rig(1, false), &config).unwrap();
+        check_before_capture(&rig(2, true), &config).unwrap();
+        let err = check_before_capture(&rig(3, true), &config).unwrap_err();
+        assert!(matches!(err, ScanError::HeadCount { heads: 3 }), "{err}");
+        assert!(
+            err.to_string().contains("sync board drives 1 to 2"),
+            "{err}"
+        );
+        assert!(matches!(
+            check_before_capture(&rig(0, false), &config),
+            Err(ScanError::HeadCount { heads: 0 })
+        ));
+        assert!(matches!(
+            check_before_capture(&rig(2, false), &config),
+            Err(ScanError::NoHeadToHead)
+        ));
+        let mut simultaneous = config.clone();
+        simultaneous.mode = Mode::Simultaneous;
+        assert!(matches!(
+            check_before_capture(&rig(1, false), &simultaneous),
+            Err(ScanError::ModeNeedsTwoHeads { .. })
+        ));
+        // Analytic de-aliasing with the three default periods: too few.
+        assert!(matches!(
+            check_before_capture(&rig(2, true), &simultaneous),
+            Err(ScanError::DealiasPeriods { periods: 3 })
+        ));
+        simultaneous.periods_px = dealias_periods_px(1280);
+        check_before_capture(&rig(2, true), &simultaneous).unwrap();
+    }
 }
