@@ -11,7 +11,7 @@ use std::time::Instant;
 use hil_sim::twin::scenes::{built_in, Detail};
 use hil_sim::twin::TwinRig;
 use slscan::dealias::{dealias_frames, AnalyticDealiaser, AnalyticParams};
-use slscan::scan::aliasing::{lighting, AliasParams};
+use slscan::scan::aliasing::{camera_lighting, AliasParams};
 use slscan::scan::{capture, dealias_periods_px, Mode};
 use slscan::sim::rig::{SimRig, SimRigConfig};
 use slscan::sim::scan::{sim_sensor, SimScanConfig};
@@ -59,15 +59,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     for cam in 0..2 {
         let frames = &mut captured.frames[cam];
-        let both = lighting(&flats[cam], &AliasParams::default()).both();
+        let lit = camera_lighting(&flats[cam], cam, &AliasParams::default());
+        let both = lit.lit.both();
         let aliased: Vec<f64> = (0..both.len()).map(|i| phase(frames, i)).collect();
         let start = Instant::now();
         let stats = dealias_frames(
             frames,
             &flats[cam],
             cam,
+            &lit,
             &solver,
-            &AliasParams::default(),
             scan.noise_sigma,
             scan.shot_noise_share,
         );

@@ -21,7 +21,7 @@ use rayon::prelude::*;
 pub use analytic::{AnalyticDealiaser, AnalyticParams, Refused, Separated};
 
 use crate::raster::Raster;
-use crate::scan::aliasing::{lighting, unusable_mask, AliasParams, FlatFields};
+use crate::scan::aliasing::{CameraLighting, FlatFields};
 
 /// How the simultaneous mode treats pixels the other projector lights.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -107,24 +107,40 @@ fn sample_sigma(noise_sigma: f32, shot_share: f32, mean: f32) -> f64 {
     (half * ((1.0 - share) + share * f64::from(mean.max(0.0)) / 0.5)).sqrt()
 }
 
+/// Zeroes `frames` where `mask` holds: zero modulation, so the
+/// reconstruction masks those pixels.
+pub fn mask_pixels(frames: &mut [Raster<f32>], mask: &[bool]) {
+    for f in frames.iter_mut() {
+        for (v, &m) in f.data.iter_mut().zip(mask) {
+            if m {
+                *v = 0.0;
+            }
+        }
+    }
+}
+
 /// De-aliases head `own`'s camera frames in place (period-major, `K x N`
-/// as `solver` expects) with its flat fields: every pixel the other
-/// projector lights is either separated (its own fringe written back) or,
-/// when not lit by its own projector or refused, zeroed (zero modulation:
-/// the reconstruction masks it). `noise_sigma` and `shot_share` are the
-/// camera's noise (as `ReconstructConfig` has them).
+/// as `solver` expects) with its flat fields and the lighting they give
+/// (`lighting`, [`crate::scan::aliasing::camera_lighting`]): every pixel the
+/// other projector lights is either separated (its own fringe written back)
+/// or, when not lit by its own projector or refused, masked
+/// ([`mask_pixels`]). `noise_sigma` and `shot_share` are the camera's noise
+/// (as `ReconstructConfig` has them).
 pub fn dealias_frames(
     frames: &mut [Raster<f32>],
     flat: &FlatFields,
     own: usize,
+    lighting: &CameraLighting,
     solver: &AnalyticDealiaser,
-    params: &AliasParams,
     noise_sigma: f32,
     shot_share: f32,
 ) -> DealiasStats {
-    let affected = unusable_mask(flat, own, params);
-    let lit = lighting(flat, params);
-    let own_lit = if own == 0 { &lit.lit_a } else { &lit.lit_b };
+    let affected = &lighting.unusable;
+    let own_lit = if own == 0 {
+        &lighting.lit.lit_a
+    } else {
+        &lighting.lit.lit_b
+    };
     let (own_flat, other_flat) = if own == 0 {
         (&flat.lit_a, &flat.lit_b)
     } else {
@@ -181,14 +197,12 @@ pub fn dealias_frames(
             Err(Refused::NoSolution) => stats.unsolved += 1,
         }
     }
-    for f in frames.iter_mut() {
-        for (i, v) in f.data.iter_mut().enumerate() {
-            if affected[i] && !written[i] {
-                // Zero modulation: the reconstruction masks the pixel.
-                *v = 0.0;
-            }
-        }
-    }
+    let refused: Vec<bool> = affected
+        .iter()
+        .zip(&written)
+        .map(|(&a, &w)| a && !w)
+        .collect();
+    mask_pixels(frames, &refused);
     stats
 }
 

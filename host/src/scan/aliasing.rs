@@ -95,9 +95,25 @@ pub fn lighting(flat: &FlatFields, params: &AliasParams) -> Lighting {
 /// both) and also the pixels lit by the other projector alone, whose
 /// fringes the camera would decode with the wrong projector's geometry.
 pub fn unusable_mask(flat: &FlatFields, head: usize, params: &AliasParams) -> Vec<bool> {
-    let l = lighting(flat, params);
-    let other = if head == 0 { &l.lit_b } else { &l.lit_a };
-    dilate(other, flat.dark.width, flat.dark.height, params.grow_px)
+    camera_lighting(flat, head, params).unusable
+}
+
+/// One camera's lighting by the flat fields and its [`unusable_mask`],
+/// from one pass over the flat fields.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CameraLighting {
+    /// Which pixels each projector lights.
+    pub lit: Lighting,
+    /// Every pixel the other head's projector lights, grown.
+    pub unusable: Vec<bool>,
+}
+
+/// [`lighting`] and [`unusable_mask`] of head `head`'s camera together.
+pub fn camera_lighting(flat: &FlatFields, head: usize, params: &AliasParams) -> CameraLighting {
+    let lit = lighting(flat, params);
+    let other = if head == 0 { &lit.lit_b } else { &lit.lit_a };
+    let unusable = dilate(other, flat.dark.width, flat.dark.height, params.grow_px);
+    CameraLighting { lit, unusable }
 }
 
 /// How a measured mask agrees with a true one.

@@ -18,10 +18,10 @@
 
 use protocol::HeadSet;
 
-use super::aliasing::{lighting, unusable_mask, AliasParams, FlatFields};
+use super::aliasing::{camera_lighting, AliasParams, FlatFields};
 use super::{plan, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
 use crate::dealias::{
-    dealias_frames, AnalyticDealiaser, AnalyticParams, DealiasMethod, DealiasStats,
+    dealias_frames, mask_pixels, AnalyticDealiaser, AnalyticParams, DealiasMethod, DealiasStats,
 };
 use crate::demultiplex::{phase_shift_rad, Demultiplexer, DemuxError, TemporalBins};
 use crate::raster::Raster;
@@ -247,7 +247,7 @@ fn demultiplexed_frames(
 /// Simultaneous mode with identical sequences: pixels lit by both
 /// projectors see aliased fringes, and pixels lit by the other head's
 /// projector alone see fringes of the wrong projector, as the flat fields
-/// show them ([`unusable_mask`]). With [`DealiasMethod::Analytic`] each
+/// show them ([`super::aliasing::unusable_mask`]). With [`DealiasMethod::Analytic`] each
 /// camera's own fringe is separated where both light the pixel
 /// ([`crate::dealias`]) and the rest masked; with [`DealiasMethod::Mask`]
 /// all of them are masked (frames zeroed there, so the reconstruction masks
@@ -277,8 +277,9 @@ pub fn resolve_measured_overlap(
     let mut overlaps = Vec::new();
     let mut all_stats = Vec::new();
     for (h, (frames, flat)) in captured.frames.iter_mut().zip(flat).enumerate() {
-        let both = lighting(flat, &params).both();
-        let mask = unusable_mask(flat, h, &params);
+        let lit = camera_lighting(flat, h, &params);
+        let both = lit.lit.both();
+        let mask = &lit.unusable;
         let both_count = both.iter().filter(|&&b| b).count();
         let mask_count = mask.iter().filter(|&&m| m).count();
         let Some(solver) = &solver else {
@@ -291,14 +292,7 @@ pub fn resolve_measured_overlap(
             );
             tracing::warn!("{warning}");
             warnings.push(warning);
-            for f in frames.iter_mut() {
-                for (v, &m) in f.data.iter_mut().zip(&mask) {
-                    if m {
-                        // Zero modulation: the reconstruction masks the pixel.
-                        *v = 0.0;
-                    }
-                }
-            }
+            mask_pixels(frames, mask);
             overlaps.push(both);
             all_stats.push(DealiasStats {
                 affected: mask_count,
@@ -310,8 +304,8 @@ pub fn resolve_measured_overlap(
             frames,
             flat,
             h,
+            &lit,
             solver,
-            &params,
             config.noise_sigma * captured.noise_factor,
             config.shot_noise_share,
         );
