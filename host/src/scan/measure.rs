@@ -51,9 +51,11 @@ pub fn measure(
     let geometries = &truth.cameras[..recons.len()];
     let fused_pts = points_f64(fused);
     let true_a_from_world = truth.head_from_world(0);
+    let surfaces: Vec<Vec<bool>> = geometries.iter().map(CameraTruth::has_surface).collect();
     let truth_in_true_a: Vec<Sample> = geometries
         .iter()
-        .flat_map(|g| metrics::samples(g, &g.has_surface(), &true_a_from_world))
+        .zip(&surfaces)
+        .flat_map(|(g, s)| metrics::samples(g, s, &true_a_from_world))
         .collect();
     let fit = |cloud: &[nalgebra::Vector3<f64>],
                samples: &[Sample],
@@ -77,9 +79,9 @@ pub fn measure(
     let a_from_world = fused_fit.frame_from_world;
     let mut surface: Vec<Sample> = Vec::new();
     let mut all_surface: Vec<Sample> = Vec::new();
-    for g in geometries {
+    for (g, s) in geometries.iter().zip(&surfaces) {
         surface.extend(metrics::samples(g, &g.own_object, &a_from_world));
-        all_surface.extend(metrics::samples(g, &g.has_surface(), &a_from_world));
+        all_surface.extend(metrics::samples(g, s, &a_from_world));
     }
     let mut heads = Vec::new();
     for (h, recon) in recons.iter().enumerate() {
@@ -87,7 +89,7 @@ pub fn measure(
         let true_head_from_world = truth.head_from_world(h);
         let frame_fit = fit(
             &points_f64(&recon.cloud),
-            &metrics::samples(g, &g.has_surface(), &true_head_from_world),
+            &metrics::samples(g, &surfaces[h], &true_head_from_world),
             &true_head_from_world,
             &format!("head {}", HEAD_NAMES[h]),
             warnings,
