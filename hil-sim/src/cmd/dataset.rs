@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use hil_sim::twin::dataset::{write_dataset, DatasetKind, DatasetSpec};
+use hil_sim::twin::dataset::{write_dataset, AliasedPeriods, DatasetKind, DatasetSpec};
 use hil_sim::twin::Turbidity;
 
 /// Options of `hil-sim dataset`.
@@ -35,6 +35,15 @@ pub struct Args {
     /// Underwater only: one turbidity for all samples (default: random T1..T4 per sample).
     #[arg(long)]
     turbidity: Option<Turbidity>,
+    /// Aliased only: the scan's periods (73/64/56/50 fringes over the DMD) or seed 000's (100..130 px).
+    #[arg(long, value_enum, default_value_t = AliasedPeriods::Scan)]
+    periods: AliasedPeriods,
+    /// Aliased only: least sensor noise scale (1 = the simulated scan's), drawn log-uniformly per sample.
+    #[arg(long, default_value_t = 0.7)]
+    noise_min: f64,
+    /// Aliased only: greatest sensor noise scale.
+    #[arg(long, default_value_t = 1.4)]
+    noise_max: f64,
 }
 
 /// Writes the dataset with a progress bar.
@@ -47,6 +56,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         height: args.height,
         projector: (args.dmd_width, args.dmd_height),
         turbidity: args.turbidity,
+        periods: args.periods,
+        noise_scale: (args.noise_min, args.noise_max),
     };
     let bar = indicatif::ProgressBar::new(args.count as u64);
     write_dataset(&spec, &args.out, |_| bar.inc(1))?;

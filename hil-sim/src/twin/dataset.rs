@@ -2,10 +2,11 @@
 //! rendered pairs with ground truth, as PNG / NPY plus a JSON manifest.
 //!
 //! Kinds (one per network of the project):
-//! - `aliased` (seed 000): both heads project the same fringe at once;
-//!   camera A's aliased image (noisy), the noise-free image of ambient +
-//!   each projector alone (what a single-head reference run records), and
-//!   each projector's absolute phase.
+//! - `aliased` (seed 000): both heads project the same 4-period x 4-step
+//!   fringe sequence at once; per camera the 16 aliased frames and 3 flat
+//!   fields (noisy), the 16 noise-free frames of ambient + its own projector
+//!   alone (what a single-head run records) and the own projector's DMD
+//!   column ([`super::aliased_stack`]).
 //! - `multiplexed` (seed 001): 24 binary patterns (8 directions x R/G/B)
 //!   at 5 kHz inside one 4.8 ms colour exposure; the 24 clean fringes (each
 //!   pattern alone, sensor scale, no crosstalk, no noise) and their phases.
@@ -20,6 +21,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
+use super::aliased_stack::{render_aliased_stack, scan_sensor, AliasedCapture, AliasedStack};
 use super::device::Rig;
 use super::error::TwinError;
 use super::io::{create_dir, write_json, write_npy, write_png, PngDepth};
@@ -58,6 +60,11 @@ pub struct DatasetSpec {
     pub projector: (u32, u32),
     /// Underwater only: fixed turbidity, or None for a random level per sample.
     pub turbidity: Option<Turbidity>,
+    /// Aliased only: the fringe periods.
+    pub periods: AliasedPeriods,
+    /// Aliased only: the sensor noise scale (1 = the scan's) is drawn
+    /// log-uniformly from this range per sample.
+    pub noise_scale: (f64, f64),
 }
 
 /// (width, height, fringe bits, depth, pattern).
@@ -121,15 +128,22 @@ pub fn write_dataset(
             why: "must be > 0",
         });
     }
+    let (lo, hi) = spec.noise_scale;
+    if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi >= lo) {
+        return Err(TwinError::BadParameter {
+            name: "noise scale range",
+            value: lo,
+            why: "must be finite, > 0 and min <= max",
+        });
+    }
     create_dir(out)?;
     let mut samples = Vec::with_capacity(spec.count);
     let mut patterns = Patterns::default();
     for i in 0..spec.count {
-        let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
-        rng.set_stream(i as u64);
+        let mut rng = sample_rng(spec, i);
         let prefix = format!("{i:06}");
         let entry = match spec.kind {
-            DatasetKind::Aliased => aliased(&mut rng, spec, out, &prefix, &mut patterns)?,
+            DatasetKind::Aliased => aliased(spec, out, i, &prefix)?,
             DatasetKind::Multiplexed => multiplexed(&mut rng, spec, out, &prefix, &mut patterns)?,
             DatasetKind::Underwater => underwater(&mut rng, spec, out, &prefix, &mut patterns)?,
         };
@@ -207,73 +221,114 @@ fn fringe_timeline(
         .collect()
 }
 
-fn aliased(
-    rng: &mut ChaCha8Rng,
+/// The aliased kind's fringe periods.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+pub enum AliasedPeriods {
+    /// The simultaneous scan's: 73, 64, 56 and 50 fringes over the DMD width
+    /// (`slscan::scan::dealias_periods_px`), what the shipped de-aliaser is
+    /// trained on.
+    Scan,
+    /// Seed 000's 100, 110, 120 and 130 DMD pixels.
+    Seed,
+}
+
+impl AliasedPeriods {
+    /// The periods in DMD pixels for a DMD `dmd_width_px` wide.
+    pub fn periods_px(self, dmd_width_px: u32) -> Vec<f64> {
+        match self {
+            AliasedPeriods::Scan => [73.0, 64.0, 56.0, 50.0]
+                .iter()
+                .map(|f| f64::from(dmd_width_px) / f)
+                .collect(),
+            AliasedPeriods::Seed => ALIASED_PERIODS_PX.to_vec(),
+        }
+    }
+}
+
+/// Seconds each aliased frame is exposed (the scan's pattern display time;
+/// the sensor scale follows it, so only the noise model depends on it).
+const ALIASED_EXPOSURE_S: f64 = 1e-3;
+
+/// Sample `index` of an aliased dataset: each camera's capture (camera 0,
+/// then 1), the sensor noise scale drawn for it and the capture. The same
+/// (spec, index) gives the same sample, written or not.
+pub fn aliased_sample(
     spec: &DatasetSpec,
-    out: &Path,
-    prefix: &str,
-    patterns: &mut Patterns,
-) -> Result<Value, TwinError> {
-    let scene = random_scene(rng, &PLACE, false)?;
+    index: usize,
+) -> Result<(Vec<AliasedStack>, f64, AliasedCapture), TwinError> {
+    let mut rng = sample_rng(spec, index);
+    let scene = random_scene(&mut rng, &PLACE, false)?;
     let rig = dual_head(&detail(spec));
-    let period_px = ALIASED_PERIODS_PX[rng.random_range(0..4)];
-    let step = rng.random_range(0..4usize);
-    let fringe = Fringe {
-        period_px,
-        angle_rad: 0.0,
-        shift_rad: TAU * step as f64 / 4.0,
+    let (lo, hi) = spec.noise_scale;
+    let noise_scale = if hi > lo {
+        (lo.ln() + rng.random::<f64>() * (hi.ln() - lo.ln())).exp()
+    } else {
+        lo
     };
-    let exposure = Exposure {
-        start_s: 0.0,
-        end_s: 0.5e-3,
+    let capture = AliasedCapture {
+        periods_px: spec.periods.periods_px(spec.projector.0),
+        steps: 4,
+        sensor: scan_sensor(ALIASED_EXPOSURE_S, noise_scale),
+        exposure_s: ALIASED_EXPOSURE_S,
     };
-    let sensor = SensorModel::mono12();
-    let renderer = Renderer::new(&scene, &rig, 0, 0.0)?;
-    let frame = renderer.frame(
-        &fringe_timeline(&rig, &fringe, &exposure, &[0, 1], patterns),
-        exposure,
-        &sensor,
-        rng.random(),
-    )?;
-    let depth = png_depth(&sensor);
-    let files = [
-        format!("{prefix}_aliased.png"),
-        format!("{prefix}_clean_a.png"),
-        format!("{prefix}_clean_b.png"),
-        format!("{prefix}_phase_a.npy"),
-        format!("{prefix}_phase_b.npy"),
-        format!("{prefix}_depth_m.npy"),
-        format!("{prefix}_overlap.png"),
-    ];
-    save_image(out, &files[0], &frame.image, depth)?;
-    save_image(out, &files[1], &frame.per_projector_clean[0], depth)?;
-    save_image(out, &files[2], &frame.per_projector_clean[1], depth)?;
-    let t = &frame.truth;
-    write_npy(
-        &out.join(&files[3]),
-        &shape2(spec),
-        &t.absolute_phase(0, &fringe),
-    )?;
-    write_npy(
-        &out.join(&files[4]),
-        &shape2(spec),
-        &t.absolute_phase(1, &fringe),
-    )?;
-    write_npy(&out.join(&files[5]), &shape2(spec), t.depth_m())?;
-    let overlap: Vec<f32> = t.overlap().iter().map(|&o| o as u8 as f32).collect();
-    write_png(
-        &out.join(&files[6]),
-        spec.width,
-        spec.height,
-        1,
-        &overlap,
-        PngDepth::Eight,
-    )?;
+    let stacks = (0..2)
+        .map(|camera| render_aliased_stack(&scene, &rig, camera, &capture, rng.random()))
+        .collect::<Result<_, _>>()?;
+    Ok((stacks, noise_scale, capture))
+}
+
+/// Sample `index`'s random stream: ChaCha8 stream `index` of the seed.
+fn sample_rng(spec: &DatasetSpec, index: usize) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
+    rng.set_stream(index as u64);
+    rng
+}
+
+fn aliased(spec: &DatasetSpec, out: &Path, index: usize, prefix: &str) -> Result<Value, TwinError> {
+    let (stacks, noise_scale, capture) = aliased_sample(spec, index)?;
+    let frames = capture.periods_px.len() * capture.steps;
+    let [h, w] = shape2(spec);
+    let mut cameras = Vec::with_capacity(2);
+    for (camera, st) in stacks.iter().enumerate() {
+        let name = |what: &str| format!("{prefix}_{}_{what}", ["a", "b"][camera]);
+        let files = [
+            name("aliased.npy"),
+            name("clean.npy"),
+            name("flats.npy"),
+            name("own_u_px.npy"),
+            name("overlap.png"),
+        ];
+        write_npy(&out.join(&files[0]), &[frames, h, w], &st.aliased.concat())?;
+        write_npy(
+            &out.join(&files[1]),
+            &[frames, h, w],
+            &st.clean_own.concat(),
+        )?;
+        write_npy(&out.join(&files[2]), &[3, h, w], &st.flats.concat())?;
+        write_npy(&out.join(&files[3]), &[h, w], &st.own_u_px)?;
+        let overlap: Vec<f32> = st.overlap.iter().map(|&o| o as u8 as f32).collect();
+        write_png(
+            &out.join(&files[4]),
+            spec.width,
+            spec.height,
+            1,
+            &overlap,
+            PngDepth::Eight,
+        )?;
+        cameras.push(json!({
+            "camera": camera,
+            "input": files[0], "target": files[1], "flats": files[2],
+            "own_u_px": files[3], "overlap_mask": files[4],
+            "overlap_px": st.overlap.iter().filter(|&&o| o).count(),
+        }));
+    }
     Ok(json!({
-        "input": files[0], "targets": [files[1], files[2]], "phases": [files[3], files[4]],
-        "depth_m": files[5], "overlap_mask": files[6],
-        "period_px": period_px, "step": step, "steps": 4, "exposure_us": exposure.duration_s() * 1e6,
-        "overlap_px": t.overlap().iter().filter(|&&o| o).count(),
+        "cameras": cameras,
+        "periods_px": capture.periods_px, "steps": capture.steps,
+        "frame_order": "period-major: frame k*steps + n is period k, shift 2 pi n / steps",
+        "flats_order": ["dark", "own projector on", "other projector on"],
+        "noise_scale": noise_scale,
+        "exposure_us": ALIASED_EXPOSURE_S * 1e6,
     }))
 }
 
@@ -479,6 +534,8 @@ mod tests {
                 height: 40,
                 projector: (160, 100),
                 turbidity: None,
+                periods: AliasedPeriods::Scan,
+                noise_scale: (0.7, 1.4),
             };
             let (a, b) = (tmp(&format!("{kind:?}-a")), tmp(&format!("{kind:?}-b")));
             let ma = write_dataset(&spec, &a, |_| {}).unwrap();
@@ -509,6 +566,8 @@ mod tests {
             height: 32,
             projector: (160, 100),
             turbidity: None,
+            periods: AliasedPeriods::Scan,
+            noise_scale: (1.0, 1.0),
         };
         let dir = tmp("sum");
         write_dataset(&spec, &dir, |_| {}).unwrap();

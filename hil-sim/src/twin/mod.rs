@@ -46,6 +46,7 @@
 // iterators would hide which component goes with which.
 #![allow(clippy::needless_range_loop)]
 
+pub mod aliased_stack;
 pub mod cache;
 pub mod dataset;
 pub mod device;
