@@ -22,6 +22,7 @@ pub mod demultiplex;
 pub mod fit;
 pub mod fusion;
 pub mod huge_pages;
+pub mod infer;
 pub mod io;
 pub mod patterns;
 pub mod phase;

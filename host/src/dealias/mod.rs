@@ -15,6 +15,8 @@
 //! behaviour before a de-aliaser existed).
 
 pub mod analytic;
+pub mod learned;
+pub mod metrics;
 
 use rayon::prelude::*;
 
@@ -31,6 +33,9 @@ pub enum DealiasMethod {
     Analytic,
     /// Mask every pixel the other projector lights.
     Mask,
+    /// A trained network ([`learned`]; the model is
+    /// [`crate::scan::ScanConfig::learned`]).
+    Learned,
 }
 
 impl DealiasMethod {
@@ -39,6 +44,7 @@ impl DealiasMethod {
         match self {
             DealiasMethod::Analytic => "analytic",
             DealiasMethod::Mask => "mask",
+            DealiasMethod::Learned => "learned",
         }
     }
 }
@@ -62,6 +68,13 @@ pub struct DealiasStats {
     /// separated neighbours (a wrong solution of a pixel whose equations
     /// have several).
     pub inconsistent: usize,
+    /// Refused: NaN or saturated input (learned; the analytic solver's
+    /// misfit test catches these).
+    pub bad_input: usize,
+    /// Learned: tiles and network evaluations.
+    pub network: Option<learned::LearnedRun>,
+    /// Wall time, milliseconds.
+    pub time_ms: u64,
 }
 
 /// Pairs of opposite neighbours that must agree (of four): two, since a
@@ -204,6 +217,103 @@ pub fn dealias_frames(
         .collect();
     mask_pixels(frames, &refused);
     stats
+}
+
+/// A sample at or above this is clipped by the sensor (full scale 1).
+const SATURATED: f32 = 0.999;
+
+/// Whether pixel `i` holds a NaN or a clipped sample in any frame or flat
+/// field: the network would invent a fringe there.
+fn bad_input(frames: &[Raster<f32>], flat: &FlatFields, i: usize) -> bool {
+    frames
+        .iter()
+        .chain([&flat.dark, &flat.lit_a, &flat.lit_b])
+        .any(|f| f.data[i].is_nan() || f.data[i] >= SATURATED)
+}
+
+/// As [`dealias_frames`], with a trained network: every pixel the other
+/// projector lights is written with the network's own fringe (re-centred
+/// on the observed mean, as [`own_fringe`] does) when its own projector
+/// lights it too and its input is finite and unclipped, and masked
+/// otherwise. `seed` makes a diffusion sample reproducible.
+pub fn dealias_frames_learned(
+    frames: &mut [Raster<f32>],
+    flat: &FlatFields,
+    own: usize,
+    lighting: &CameraLighting,
+    network: &learned::LearnedDealiaser,
+    seed: u64,
+) -> Result<DealiasStats, crate::infer::ModelError> {
+    let affected = &lighting.unusable;
+    let own_lit = if own == 0 {
+        &lighting.lit.lit_a
+    } else {
+        &lighting.lit.lit_b
+    };
+    let own_flat = if own == 0 { &flat.lit_a } else { &flat.lit_b };
+    let (width, height) = (flat.dark.width, flat.dark.height);
+    let pixels = width * height;
+    let tried: Vec<bool> = (0..pixels).map(|i| affected[i] && own_lit[i]).collect();
+    let bad: Vec<bool> = (0..pixels)
+        .map(|i| tried[i] && bad_input(frames, flat, i))
+        .collect();
+    let needed: Vec<bool> = tried.iter().zip(&bad).map(|(&t, &b)| t && !b).collect();
+    let s_min = network.model().meta.normalisation.s_min;
+    let (mut cond, scale) = learned::condition(frames, flat, own, s_min);
+    // A NaN would spread through the convolutions over its whole tile, and
+    // a clipped sample is not a fringe: both enter the network as zero.
+    for plane in cond.chunks_mut(pixels) {
+        for (i, v) in plane.iter_mut().enumerate() {
+            if bad[i] || !v.is_finite() {
+                *v = 0.0;
+            }
+        }
+    }
+    let planes = crate::infer::tiles::Planes {
+        data: &cond,
+        channels: frames.len() + 2,
+        width,
+        height,
+    };
+    let (x0, run) = network.predict(&planes, &needed, seed)?;
+    let count = frames.len();
+    let mut stats = DealiasStats {
+        affected: affected.iter().filter(|&&m| m).count(),
+        attempted: tried.iter().filter(|&&t| t).count(),
+        bad_input: bad.iter().filter(|&&b| b).count(),
+        network: Some(run),
+        ..DealiasStats::default()
+    };
+    let mut written = vec![false; pixels];
+    let mut clean = vec![0.0f32; count];
+    for i in (0..pixels).filter(|&i| needed[i]) {
+        for (k, c) in clean.iter_mut().enumerate() {
+            *c = learned::clean_frame(
+                x0[k * pixels + i],
+                own_flat.data[i],
+                flat.dark.data[i],
+                scale[i],
+            );
+        }
+        if clean.iter().any(|c| !c.is_finite()) {
+            stats.unsolved += 1;
+            continue;
+        }
+        let observed = frames.iter().map(|f| f.data[i]).sum::<f32>() / count as f32;
+        let predicted = clean.iter().sum::<f32>() / count as f32;
+        for (f, c) in frames.iter_mut().zip(&clean) {
+            f.data[i] = observed + (c - predicted);
+        }
+        written[i] = true;
+        stats.separated += 1;
+    }
+    let refused: Vec<bool> = affected
+        .iter()
+        .zip(&written)
+        .map(|(&a, &w)| a && !w)
+        .collect();
+    mask_pixels(frames, &refused);
+    Ok(stats)
 }
 
 /// The own projector's N-step fringe of a separated pixel, period-major,

@@ -51,7 +51,7 @@ pub struct HeadReport {
 /// One camera's de-aliasing of the simultaneous mode's overlap.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct DealiasReport {
-    /// `analytic` or `mask`.
+    /// `analytic`, `learned` or `mask`.
     pub method: String,
     /// Pixels the other projector lights (grown).
     pub affected_pixels: usize,
@@ -67,6 +67,28 @@ pub struct DealiasReport {
     pub unsolved_pixels: usize,
     /// Refused as disagreeing with every pair of separated neighbours.
     pub inconsistent_pixels: usize,
+    /// Refused for NaN or saturated input (learned).
+    pub bad_input_pixels: usize,
+    /// Learned: the network, its sampler steps (0 = one-step), tiles and
+    /// network evaluations.
+    pub network: Option<NetworkRunReport>,
+    /// Wall time of this camera's de-aliasing, milliseconds.
+    pub time_ms: u64,
+}
+
+/// What a learned de-aliaser ran for one camera.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct NetworkRunReport {
+    /// The ONNX file.
+    pub model: String,
+    /// "onestep" or "diffusion".
+    pub kind: String,
+    /// Sampler steps per tile (1 for a one-step network).
+    pub sampler_steps: usize,
+    /// Tiles run.
+    pub tiles: usize,
+    /// Network evaluations (tiles x sampler steps).
+    pub evaluations: usize,
 }
 
 /// One head's sphere fit of a sphere of known size.

@@ -21,7 +21,8 @@ use protocol::HeadSet;
 use super::aliasing::{camera_lighting, AliasParams, FlatFields};
 use super::{plan, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
 use crate::dealias::{
-    dealias_frames, mask_pixels, AnalyticDealiaser, AnalyticParams, DealiasMethod, DealiasStats,
+    dealias_frames, dealias_frames_learned, mask_pixels, AnalyticDealiaser, AnalyticParams,
+    DealiasMethod, DealiasStats,
 };
 use crate::demultiplex::{phase_shift_rad, Demultiplexer, DemuxError, TemporalBins};
 use crate::raster::Raster;
@@ -272,45 +273,56 @@ pub fn resolve_measured_overlap(
             )
             .map_err(ScanError::Dealias)?,
         ),
-        DealiasMethod::Mask => None,
+        DealiasMethod::Mask | DealiasMethod::Learned => None,
     };
     let mut overlaps = Vec::new();
     let mut all_stats = Vec::new();
     for (h, (frames, flat)) in captured.frames.iter_mut().zip(flat).enumerate() {
+        let started = std::time::Instant::now();
         let lit = camera_lighting(flat, h, &params);
         let both = lit.lit.both();
         let mask = &lit.unusable;
         let both_count = both.iter().filter(|&&b| b).count();
         let mask_count = mask.iter().filter(|&&m| m).count();
-        let Some(solver) = &solver else {
-            let warning = format!(
-                "simultaneous mode: camera {} has {both_count} pixels that the flat fields show lit \
-                 by both projectors (aliased fringes); they and the pixels lit by the other head's \
-                 projector alone, {mask_count} in all (grown by {} px), are MASKED OUT \
-                 (--dealias mask)",
-                HEAD_NAMES[h], params.grow_px
-            );
-            tracing::warn!("{warning}");
-            warnings.push(warning);
-            mask_pixels(frames, mask);
-            overlaps.push(both);
-            all_stats.push(DealiasStats {
-                affected: mask_count,
-                ..DealiasStats::default()
-            });
-            continue;
+        let mut stats = match (config.dealias, &solver, &config.learned) {
+            (DealiasMethod::Analytic, Some(solver), _) => dealias_frames(
+                frames,
+                flat,
+                h,
+                &lit,
+                solver,
+                config.noise_sigma * captured.noise_factor,
+                config.shot_noise_share,
+            ),
+            (DealiasMethod::Learned, _, Some(network)) => {
+                dealias_frames_learned(frames, flat, h, &lit, network, h as u64)
+                    .map_err(ScanError::Network)?
+            }
+            (DealiasMethod::Learned, _, None) => return Err(ScanError::NoLearnedModel),
+            _ => {
+                let warning = format!(
+                    "simultaneous mode: camera {} has {both_count} pixels that the flat fields show lit \
+                     by both projectors (aliased fringes); they and the pixels lit by the other head's \
+                     projector alone, {mask_count} in all (grown by {} px), are MASKED OUT \
+                     (--dealias mask)",
+                    HEAD_NAMES[h], params.grow_px
+                );
+                tracing::warn!("{warning}");
+                warnings.push(warning);
+                mask_pixels(frames, mask);
+                overlaps.push(both);
+                all_stats.push(DealiasStats {
+                    affected: mask_count,
+                    time_ms: started.elapsed().as_millis() as u64,
+                    ..DealiasStats::default()
+                });
+                continue;
+            }
         };
-        let stats = dealias_frames(
-            frames,
-            flat,
-            h,
-            &lit,
-            solver,
-            config.noise_sigma * captured.noise_factor,
-            config.shot_noise_share,
-        );
+        stats.time_ms = started.elapsed().as_millis() as u64;
         tracing::info!(
             camera = HEAD_NAMES[h],
+            method = config.dealias.name(),
             affected = stats.affected,
             attempted = stats.attempted,
             separated = stats.separated,
@@ -318,20 +330,24 @@ pub fn resolve_measured_overlap(
             misfit = stats.misfit,
             unsolved = stats.unsolved,
             inconsistent = stats.inconsistent,
-            "de-aliased the overlap (analytic)"
+            bad_input = stats.bad_input,
+            evaluations = stats.network.map_or(0, |n| n.evaluations),
+            time_ms = stats.time_ms,
+            "de-aliased the overlap"
         );
         let refused = stats.attempted - stats.separated;
         if refused * 20 > stats.attempted.max(1) {
             let warning = format!(
                 "simultaneous mode: camera {}: {refused} of {} overlap pixels could not be \
                  de-aliased ({} ill-posed, {} misfit, {} unsolved, {} inconsistent with their \
-                 neighbours) and are masked",
+                 neighbours, {} NaN or saturated input) and are masked",
                 HEAD_NAMES[h],
                 stats.attempted,
                 stats.ill_posed,
                 stats.misfit,
                 stats.unsolved,
-                stats.inconsistent
+                stats.inconsistent,
+                stats.bad_input
             );
             tracing::warn!("{warning}");
             warnings.push(warning);

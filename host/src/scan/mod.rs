@@ -94,6 +94,9 @@ pub struct ScanConfig {
     pub precompensate_gamma: Option<f64>,
     /// Simultaneous mode: how pixels the other projector lights are treated.
     pub dealias: crate::dealias::DealiasMethod,
+    /// The network of [`crate::dealias::DealiasMethod::Learned`], loaded
+    /// and checked before the scan (`None` otherwise).
+    pub learned: Option<std::sync::Arc<crate::dealias::learned::LearnedDealiaser>>,
 }
 
 impl ScanConfig {
@@ -118,6 +121,7 @@ impl ScanConfig {
             },
             precompensate_gamma: None,
             dealias: crate::dealias::DealiasMethod::default(),
+            learned: None,
         }
     }
 }
@@ -153,6 +157,12 @@ pub enum ScanError {
         /// Heads in the calibration.
         heads: usize,
     },
+    /// The de-aliasing network failed to run.
+    #[error("learned de-aliasing")]
+    Network(#[source] crate::infer::ModelError),
+    /// `--dealias learned` without a loaded network.
+    #[error("learned de-aliasing needs a model (--dealias-model)")]
+    NoLearnedModel,
     /// Two heads need the pose between them.
     #[error("the calibration has two heads but no head_to_head pose")]
     NoHeadToHead,
@@ -367,6 +377,12 @@ pub fn check_before_capture(
         && periods < crate::dealias::analytic::MIN_PERIODS
     {
         return Err(ScanError::DealiasPeriods { periods });
+    }
+    if config.mode == Mode::Simultaneous
+        && config.dealias == crate::dealias::DealiasMethod::Learned
+        && config.learned.is_none()
+    {
+        return Err(ScanError::NoLearnedModel);
     }
     Ok(())
 }
@@ -596,5 +612,11 @@ mod tests {
         ));
         simultaneous.periods_px = dealias_periods_px(1280);
         check_before_capture(&rig(2, true), &simultaneous).unwrap();
+        // Learned de-aliasing with no network loaded.
+        simultaneous.dealias = crate::dealias::DealiasMethod::Learned;
+        assert!(matches!(
+            check_before_capture(&rig(2, true), &simultaneous),
+            Err(ScanError::NoLearnedModel)
+        ));
     }
 }

@@ -11,7 +11,7 @@ use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
     write_report, AliasedMaskReport, DealiasReport, FrameFitReport, FrameOffset, FusedReport,
-    HeadReport, IcpReport, ReportError, ScanReport, SphereReport,
+    HeadReport, IcpReport, NetworkRunReport, ReportError, ScanReport, SphereReport,
 };
 use crate::raster::Raster;
 
@@ -155,6 +155,17 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                         misfit_pixels: d.misfit,
                         unsolved_pixels: d.unsolved,
                         inconsistent_pixels: d.inconsistent,
+                        bad_input_pixels: d.bad_input,
+                        network: d.network.zip(scan.config.learned.as_ref()).map(|(run, l)| {
+                            NetworkRunReport {
+                                model: l.model().path.display().to_string(),
+                                kind: l.model().meta.kind.clone(),
+                                sampler_steps: l.evaluations_per_tile(),
+                                tiles: run.tiles,
+                                evaluations: run.evaluations,
+                            }
+                        }),
+                        time_ms: d.time_ms,
                     }),
                     spheres: t
                         .map_or_else(Vec::new, |t| t.spheres.iter().map(sphere_report).collect()),

@@ -12,6 +12,7 @@
 //!                      --calibration::{twin_head, twin_scene}--> rendered board views
 //! ```
 
+pub mod aliased;
 pub mod board;
 pub mod calibration;
 pub mod calibration_source;

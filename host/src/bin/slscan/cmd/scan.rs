@@ -108,6 +108,14 @@ pub struct Args {
     /// projector lights (mask).
     #[arg(long, value_enum, default_value_t = DealiasArg::Analytic)]
     dealias: DealiasArg,
+    /// --dealias learned: the ONNX network (its .json metadata beside it);
+    /// default: the shipped one-step network, models/dealias_onestep.onnx.
+    #[arg(long)]
+    dealias_model: Option<PathBuf>,
+    /// --dealias learned with a diffusion model: DDIM sampler steps
+    /// (network evaluations per tile; the seed's DDPM used 4000).
+    #[arg(long, default_value_t = 8)]
+    sampler_steps: usize,
 }
 
 /// `--dealias` values.
@@ -117,6 +125,9 @@ enum DealiasArg {
     Analytic,
     /// Mask every pixel the other projector lights.
     Mask,
+    /// A network trained on twin data (--dealias-model); measured weaker
+    /// than analytic, see models/README.md.
+    Learned,
 }
 
 impl From<DealiasArg> for DealiasMethod {
@@ -124,6 +135,7 @@ impl From<DealiasArg> for DealiasMethod {
         match d {
             DealiasArg::Analytic => DealiasMethod::Analytic,
             DealiasArg::Mask => DealiasMethod::Mask,
+            DealiasArg::Learned => DealiasMethod::Learned,
         }
     }
 }
@@ -215,6 +227,7 @@ fn scan_sim(
     scan.precompensate_gamma = args.precompensate_gamma;
     scan.dealias = args.dealias.into();
     scan.periods_px = periods_for(args, mode, scan.projector_px.0);
+    scan.learned = load_network(args, mode, &scan.periods_px, scan.steps)?;
     Ok(scan_to_dir(&config, &args.out, progress)?)
 }
 
@@ -228,7 +241,9 @@ fn scan_sim(_: &Args, _: Mode, _: &mut dyn FnMut(Progress)) -> anyhow::Result<Sc
 fn periods_for(args: &Args, mode: Mode, dmd_width_px: u32) -> Vec<f64> {
     match (&args.periods, mode, DealiasMethod::from(args.dealias)) {
         (Some(p), ..) => p.clone(),
-        (None, Mode::Simultaneous, DealiasMethod::Analytic) => dealias_periods_px(dmd_width_px),
+        (None, Mode::Simultaneous, DealiasMethod::Analytic | DealiasMethod::Learned) => {
+            dealias_periods_px(dmd_width_px)
+        }
         (None, ..) => default_periods_px(dmd_width_px),
     }
 }
@@ -324,7 +339,44 @@ fn hardware_config(
     config.shot_noise_share = args.shot_noise_share;
     config.precompensate_gamma = args.precompensate_gamma;
     config.dealias = args.dealias.into();
+    config.learned = load_network(args, mode, &config.periods_px, config.steps)?;
     Ok(config)
+}
+
+/// The shipped one-step de-aliaser, found beside the sources when the
+/// working directory is elsewhere.
+const DEFAULT_MODEL: &str = "models/dealias_onestep.onnx";
+
+/// `--dealias learned` in the simultaneous mode: the network, loaded and
+/// checked against the scan's fringes before anything is captured.
+fn load_network(
+    args: &Args,
+    mode: Mode,
+    periods_px: &[f64],
+    steps: usize,
+) -> anyhow::Result<Option<std::sync::Arc<slscan::dealias::learned::LearnedDealiaser>>> {
+    if mode != Mode::Simultaneous || DealiasMethod::from(args.dealias) != DealiasMethod::Learned {
+        return Ok(None);
+    }
+    let path = match &args.dealias_model {
+        Some(p) => p.clone(),
+        None if Path::new(DEFAULT_MODEL).exists() => PathBuf::from(DEFAULT_MODEL),
+        None => Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("..")
+            .join(DEFAULT_MODEL),
+    };
+    let network = slscan::dealias::learned::LearnedDealiaser::load(
+        &path,
+        periods_px,
+        steps,
+        args.sampler_steps,
+    )?;
+    tracing::warn!(
+        model = %path.display(),
+        "learned de-aliasing: the shipped networks recover the overlap worse than --dealias \
+         analytic (models/README.md)"
+    );
+    Ok(Some(std::sync::Arc::new(network)))
 }
 
 fn print_summary(report: &ScanReport) {
@@ -386,6 +438,12 @@ fn print_summary(report: &ScanReport) {
                 d.unsolved_pixels,
                 d.inconsistent_pixels
             );
+            if let Some(n) = &d.network {
+                println!(
+                    "head {} network {} ({}): {} tiles, {} evaluations ({} per tile), {} NaN/saturated pixels masked, {} ms",
+                    h.name, n.model, n.kind, n.tiles, n.evaluations, n.sampler_steps, d.bad_input_pixels, d.time_ms
+                );
+            }
         }
         if let Some(m) = &h.aliased_mask {
             println!(
