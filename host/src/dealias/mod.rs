@@ -132,6 +132,16 @@ pub fn mask_pixels(frames: &mut [Raster<f32>], mask: &[bool]) {
     }
 }
 
+/// Masks ([`mask_pixels`]) every `affected` pixel not `written`.
+fn mask_unwritten(frames: &mut [Raster<f32>], affected: &[bool], written: &[bool]) {
+    let refused: Vec<bool> = affected
+        .iter()
+        .zip(written)
+        .map(|(&a, &w)| a && !w)
+        .collect();
+    mask_pixels(frames, &refused);
+}
+
 /// De-aliases head `own`'s camera frames in place (period-major, `K x N`
 /// as `solver` expects) with its flat fields and the lighting they give
 /// (`lighting`, [`crate::scan::aliasing::camera_lighting`]): every pixel the
@@ -210,12 +220,7 @@ pub fn dealias_frames(
             Err(Refused::NoSolution) => stats.unsolved += 1,
         }
     }
-    let refused: Vec<bool> = affected
-        .iter()
-        .zip(&written)
-        .map(|(&a, &w)| a && !w)
-        .collect();
-    mask_pixels(frames, &refused);
+    mask_unwritten(frames, affected, &written);
     stats
 }
 
@@ -307,12 +312,7 @@ pub fn dealias_frames_learned(
         written[i] = true;
         stats.separated += 1;
     }
-    let refused: Vec<bool> = affected
-        .iter()
-        .zip(&written)
-        .map(|(&a, &w)| a && !w)
-        .collect();
-    mask_pixels(frames, &refused);
+    mask_unwritten(frames, affected, &written);
     Ok(stats)
 }
 
