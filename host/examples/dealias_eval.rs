@@ -20,10 +20,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use slscan::dealias::learned::LearnedDealiaser;
-use slscan::dealias::metrics::{
-    error_stats, mse_8bit, psnr_db, ssim_frames, wrap_difference, wrapped_phase,
-};
+use slscan::dealias::metrics::{error_stats, mse_8bit, psnr_db, ssim_frames};
 use slscan::dealias::{dealias_frames, dealias_frames_learned, AnalyticDealiaser, AnalyticParams};
+use slscan::phase::{wrap_pi, PhaseShift};
 use slscan::raster::Raster;
 use slscan::scan::aliasing::{camera_lighting, AliasParams};
 use slscan::sim::aliased::{held_out, AliasedSample, AliasedSet};
@@ -122,14 +121,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .map(|m| run(m, &sample, &sensor))
                 .collect::<Result<Vec<_>, _>>()?;
             for (k, out) in outs.iter().enumerate() {
-                score(out, &out.recovered, &sample, &periods, &mut own[k]);
+                score(out, &out.recovered, &sample, &periods, &mut own[k])?;
                 let both: Vec<bool> = out
                     .recovered
                     .iter()
                     .zip(&outs[analytic].recovered)
                     .map(|(&a, &b)| a && b)
                     .collect();
-                score(out, &both, &sample, &periods, &mut common[k]);
+                score(out, &both, &sample, &periods, &mut common[k])?;
             }
         }
         eprintln!("sample {} of {count}", index + 1);
@@ -242,7 +241,13 @@ fn run(
 }
 
 /// Adds `out`'s figures on the pixels of `mask` to `tally`.
-fn score(out: &Output, mask: &[bool], s: &AliasedSample, periods: &[f64], tally: &mut Tally) {
+fn score(
+    out: &Output,
+    mask: &[bool],
+    s: &AliasedSample,
+    periods: &[f64],
+    tally: &mut Tally,
+) -> Result<(), Box<dyn std::error::Error>> {
     let est = &out.est;
     let mse = mse_8bit(est, &s.clean_own, mask);
     let n = mask.iter().filter(|&&r| r).count();
@@ -254,17 +259,20 @@ fn score(out: &Output, mask: &[bool], s: &AliasedSample, periods: &[f64], tally:
             tally.ssim.push(ssim);
         }
     }
+    let decoder = PhaseShift::new(4)?;
     for (k, p) in periods.iter().enumerate() {
-        let period_frames = &est[4 * k..4 * k + 4];
+        let period_frames: Vec<&Raster<f32>> = est[4 * k..4 * k + 4].iter().collect();
+        let phase = decoder.wrapped_phase(&period_frames)?.phase;
         for i in (0..mask.len()).filter(|&i| mask[i]) {
             let truth = std::f64::consts::TAU * f64::from(s.own_u_px[i]) / p;
             tally
                 .phase
-                .push(wrap_difference(wrapped_phase(period_frames, i), truth));
+                .push(f64::from(wrap_pi(phase.data[i] - truth as f32)));
         }
     }
     tally.recovered += n;
     tally.wanted += out.wanted.iter().filter(|&&r| r).count();
     tally.evaluations += out.evaluations;
     tally.seconds += out.seconds;
+    Ok(())
 }

@@ -60,7 +60,7 @@ fn shipped_models_match_their_golden_pairs() {
         let model = Model::load(&onnx).unwrap_or_else(|e| panic!("{}: {e}", onnx.display()));
         let mut tensors = golden(&onnx);
         let (_, want) = tensors.pop().unwrap();
-        let inputs: Vec<Vec<f32>> = tensors.into_iter().map(|(_, v)| v).collect();
+        let inputs: Vec<&[f32]> = tensors.iter().map(|(_, v)| v.as_slice()).collect();
         let got = model.run(&inputs).unwrap();
         assert_eq!(got.len(), want.len());
         let worst = got

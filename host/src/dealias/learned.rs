@@ -167,7 +167,7 @@ impl LearnedDealiaser {
                 if self.is_diffusion() {
                     self.sample_tile(tile, seed ^ (k as u64).wrapping_mul(0x9E37_79B9))
                 } else {
-                    self.model.run(&[tile.to_vec()])
+                    self.model.run(&[tile])
                 }
             },
         )?;
@@ -186,7 +186,7 @@ impl LearnedDealiaser {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let noise: Vec<f32> = (0..n).map(|_| StandardNormal.sample(&mut rng)).collect();
         ddim(noise, self.sampler_steps, s, |x, t| {
-            self.model.run(&[cond.to_vec(), x.to_vec(), vec![t]])
+            self.model.run(&[cond, x, &[t]])
         })
     }
 }
@@ -234,11 +234,7 @@ pub fn condition(
     own: usize,
     s_min: f32,
 ) -> (Vec<f32>, Vec<f32>) {
-    let (own_flat, other_flat) = if own == 0 {
-        (&flat.lit_a, &flat.lit_b)
-    } else {
-        (&flat.lit_b, &flat.lit_a)
-    };
+    let (own_flat, other_flat) = flat.own_other(own);
     let dark = &flat.dark.data;
     let scale: Vec<f32> = dark
         .iter()

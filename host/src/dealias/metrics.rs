@@ -1,6 +1,7 @@
 //! Figures of a de-aliased fringe against the twin's clean image: MSE and
 //! PSNR on the 8-bit scale and SSIM (as seed 000 reports them), over a
-//! mask; and the wrapped-phase error against the true phase.
+//! mask; and statistics of the wrapped-phase error (the phase itself by
+//! `crate::phase::PhaseShift`).
 
 use crate::raster::Raster;
 
@@ -100,25 +101,6 @@ pub fn ssim_frames(est: &[Raster<f32>], truth: &[Raster<f32>], mask: &[bool]) ->
     }
 }
 
-/// The N-step wrapped phase of pixel `i` (frames shifted by 2 pi n / N,
-/// `I_n = A + B cos(phi + 2 pi n / N)`).
-pub fn wrapped_phase(frames: &[Raster<f32>], i: usize) -> f64 {
-    let n = frames.len() as f64;
-    let (mut s, mut c) = (0.0, 0.0);
-    for (k, f) in frames.iter().enumerate() {
-        let d = std::f64::consts::TAU * k as f64 / n;
-        s += f64::from(f.data[i]) * d.sin();
-        c += f64::from(f.data[i]) * d.cos();
-    }
-    (-s).atan2(c)
-}
-
-/// `a - b` wrapped into [-pi, pi).
-pub fn wrap_difference(a: f64, b: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    (a - b + PI).rem_euclid(TAU) - PI
-}
-
 /// Max, 99th percentile and mean of absolute errors (NaN when empty).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ErrorStats {
@@ -202,19 +184,7 @@ mod tests {
     }
 
     #[test]
-    fn phase_of_four_shifted_frames_and_its_wrapped_error() {
-        let phi = 2.5f64;
-        let frames: Vec<Raster<f32>> = (0..4)
-            .map(|n| {
-                Raster::filled(
-                    1,
-                    1,
-                    (0.5 + 0.3 * (phi + std::f64::consts::TAU * n as f64 / 4.0).cos()) as f32,
-                )
-            })
-            .collect();
-        assert!((wrapped_phase(&frames, 0) - phi).abs() < 1e-6);
-        assert!((wrap_difference(3.1, -3.1) - (6.2 - std::f64::consts::TAU)).abs() < 1e-12);
+    fn error_statistics_take_absolute_values() {
         let s = error_stats(&[0.1, -0.3, 0.2]);
         assert_eq!((s.max, s.count), (0.3, 3));
         assert!((s.mae - 0.2).abs() < 1e-12);

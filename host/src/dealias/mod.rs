@@ -159,16 +159,8 @@ pub fn dealias_frames(
     shot_share: f32,
 ) -> DealiasStats {
     let affected = &lighting.unusable;
-    let own_lit = if own == 0 {
-        &lighting.lit.lit_a
-    } else {
-        &lighting.lit.lit_b
-    };
-    let (own_flat, other_flat) = if own == 0 {
-        (&flat.lit_a, &flat.lit_b)
-    } else {
-        (&flat.lit_b, &flat.lit_a)
-    };
+    let own_lit = lighting.lit.lit_by(own);
+    let (own_flat, other_flat) = flat.own_other(own);
     let count = frames.len();
     let pixels = flat.dark.data.len();
     let results: Vec<(usize, Result<Separated, Refused>, Vec<f32>)> = (0..pixels)
@@ -250,12 +242,8 @@ pub fn dealias_frames_learned(
     seed: u64,
 ) -> Result<DealiasStats, crate::infer::ModelError> {
     let affected = &lighting.unusable;
-    let own_lit = if own == 0 {
-        &lighting.lit.lit_a
-    } else {
-        &lighting.lit.lit_b
-    };
-    let own_flat = if own == 0 { &flat.lit_a } else { &flat.lit_b };
+    let own_lit = lighting.lit.lit_by(own);
+    let (own_flat, _) = flat.own_other(own);
     let (width, height) = (flat.dark.width, flat.dark.height);
     let pixels = width * height;
     let tried: Vec<bool> = (0..pixels).map(|i| affected[i] && own_lit[i]).collect();

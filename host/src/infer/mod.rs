@@ -266,7 +266,7 @@ impl Model {
 
     /// Runs one tile: `inputs` in the metadata's order and shapes
     /// ([`input_shapes`]); returns the output, `frame_channels x tile x tile`.
-    pub fn run(&self, inputs: &[Vec<f32>]) -> Result<Vec<f32>, ModelError> {
+    pub fn run(&self, inputs: &[&[f32]]) -> Result<Vec<f32>, ModelError> {
         let run_err = |source| ModelError::Run {
             network: self.meta.network.clone(),
             source,

@@ -51,6 +51,17 @@ pub struct FlatFields {
     pub lit_b: Raster<f32>,
 }
 
+impl FlatFields {
+    /// (own projector on, other projector on) for head `own`'s camera.
+    pub fn own_other(&self, own: usize) -> (&Raster<f32>, &Raster<f32>) {
+        if own == 0 {
+            (&self.lit_a, &self.lit_b)
+        } else {
+            (&self.lit_b, &self.lit_a)
+        }
+    }
+}
+
 /// Which pixels each projector lights, by the flat fields.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Lighting {
@@ -68,6 +79,17 @@ impl Lighting {
             .zip(&self.lit_b)
             .map(|(&a, &b)| a && b)
             .collect()
+    }
+}
+
+impl Lighting {
+    /// The pixels head `own`'s projector lights.
+    pub fn lit_by(&self, own: usize) -> &[bool] {
+        if own == 0 {
+            &self.lit_a
+        } else {
+            &self.lit_b
+        }
     }
 }
 
@@ -111,7 +133,7 @@ pub struct CameraLighting {
 /// [`lighting`] and [`unusable_mask`] of head `head`'s camera together.
 pub fn camera_lighting(flat: &FlatFields, head: usize, params: &AliasParams) -> CameraLighting {
     let lit = lighting(flat, params);
-    let other = if head == 0 { &lit.lit_b } else { &lit.lit_a };
+    let other = lit.lit_by(1 - head);
     let unusable = dilate(other, flat.dark.width, flat.dark.height, params.grow_px);
     CameraLighting { lit, unusable }
 }
