@@ -89,3 +89,20 @@ pub fn held_out(set: &AliasedSet, index: usize) -> Result<Vec<AliasedSample>, Tw
         })
         .collect())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// hil-sim cannot depend on slscan, so the dataset's scan periods are
+    /// written twice; this keeps the two the same.
+    #[test]
+    fn the_datasets_scan_periods_are_the_scans() {
+        for dmd in [912, 1280, 1920] {
+            assert_eq!(
+                AliasedPeriods::Scan.periods_px(dmd),
+                crate::scan::dealias_periods_px(dmd)
+            );
+        }
+    }
+}
