@@ -26,6 +26,7 @@ pub mod infer;
 pub mod io;
 pub mod patterns;
 pub mod phase;
+pub mod pictures;
 pub mod point_cloud;
 pub mod raster;
 pub mod reconstruct;

@@ -85,9 +85,17 @@ fn reconstruct_writes_a_cloud_and_pictures() {
     );
     let ply = std::fs::read(dir.join("out.ply")).unwrap();
     assert!(ply.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
-    for f in ["depth.png", "phase.png", "modulation.png", "depth.npy"] {
+    for f in [
+        "depth.png",
+        "projector_column.png",
+        "fringe_modulation.png",
+        "camera_mean.png",
+        "depth.npy",
+    ] {
         assert!(dir.join("pictures").join(f).exists(), "{f}");
     }
+    let page = std::fs::read_to_string(dir.join("out.html")).unwrap();
+    assert!(page.contains("data:image/png;base64,") && page.contains("valid pixels"));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("points ->"), "{stdout}");
     std::fs::remove_dir_all(&dir).unwrap();
@@ -152,6 +160,87 @@ fn bad_captures_give_clear_errors_and_no_output() {
     fails_with(&reconstruct(&dir, &images, &bad_rig), "missing field `cy`");
 
     assert!(!dir.join("out.ply").exists(), "no output after failures");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The files `reconstruct` writes with `--pictures`.
+fn reconstruct_outputs(dir: &Path) -> Vec<PathBuf> {
+    let mut files = vec![dir.join("out.ply"), dir.join("out.html")];
+    for kind in slscan::pictures::KINDS {
+        files.push(dir.join("pictures").join(format!("{kind}.png")));
+    }
+    files.push(dir.join("pictures/depth.npy"));
+    files
+}
+
+#[test]
+fn a_failed_reconstruct_leaves_no_output_old_or_new() {
+    let dir = tmp("stale");
+    let images = capture(&dir);
+    let rig = dir.join("rig.json");
+    std::fs::create_dir_all(dir.join("pictures")).unwrap();
+    for f in reconstruct_outputs(&dir) {
+        std::fs::write(f, b"an earlier run").unwrap();
+    }
+    std::fs::remove_file(images.join("frame_05.png")).unwrap();
+    fails_with(
+        &reconstruct(&dir, &images, &rig),
+        "expected 12 frames, found 11",
+    );
+    for f in reconstruct_outputs(&dir) {
+        assert!(!f.exists(), "{} left behind", f.display());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_pictures_path_that_is_a_file_is_refused_before_any_work() {
+    let dir = tmp("picfile");
+    let images = capture(&dir);
+    std::fs::write(dir.join("pictures"), b"a file").unwrap();
+    fails_with(
+        &reconstruct(&dir, &images, &dir.join("rig.json")),
+        "exists and is not a folder",
+    );
+    assert!(!dir.join("out.ply").exists(), "no cloud before the failure");
+    assert_eq!(std::fs::read(dir.join("pictures")).unwrap(), b"a file");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn reconstruct_refuses_to_replace_a_link_or_a_device() {
+    let dir = tmp("link");
+    let images = capture(&dir);
+    std::fs::write(dir.join("elsewhere.ply"), b"not ours").unwrap();
+    std::os::unix::fs::symlink(dir.join("elsewhere.ply"), dir.join("out.ply")).unwrap();
+    fails_with(
+        &reconstruct(&dir, &images, &dir.join("rig.json")),
+        "is a symlink",
+    );
+    assert!(std::fs::symlink_metadata(dir.join("out.ply"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(
+        std::fs::read(dir.join("elsewhere.ply")).unwrap(),
+        b"not ours"
+    );
+    // A device node as --out (as root, a rename would replace it).
+    let out = Command::new(env!("CARGO_BIN_EXE_slscan"))
+        .args(["reconstruct", "--periods", "9,10,11", "--out", "/dev/null"])
+        .arg("--images")
+        .arg(&images)
+        .arg("--rig")
+        .arg(dir.join("rig.json"))
+        .output()
+        .unwrap();
+    fails_with(&out, "is a device");
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::symlink_metadata("/dev/null")
+        .unwrap()
+        .file_type()
+        .is_char_device());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -390,12 +390,14 @@ fn slscan_scan_on_a_port_writes_clouds_and_a_report_without_truth() {
         "head_a.ply",
         "head_b.ply",
         "report.json",
-        "phase_a.png",
+        "report.html",
+        "projector_column_a.png",
+        "camera_mean_b.png",
     ] {
         assert!(folders.out.join(file).is_file(), "{file} written");
     }
     assert!(
-        !folders.out.join("error_a.png").exists(),
+        !folders.out.join("error_vs_truth_a.png").exists(),
         "no truth, no error map"
     );
     let report: serde_json::Value =
@@ -426,9 +428,7 @@ fn slscan_scan_with_a_missing_frame_fails_and_writes_no_scan() {
     let fault = Fault::Drop { head: 1, index: 0 };
     let (out, folders) = with_vendor_tools("cli-missing", fault, |port, folders| {
         // An earlier run's results in the output folder must not survive.
-        std::fs::create_dir_all(&folders.out).unwrap();
-        std::fs::write(folders.out.join("scan.ply"), b"an earlier run").unwrap();
-        std::fs::write(folders.out.join("report.json"), b"{}").unwrap();
+        seed_earlier_run(&folders.out);
         slscan_scan(port, folders, &["--frame-timeout-s", "10"])
     });
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -437,8 +437,81 @@ fn slscan_scan_with_a_missing_frame_fails_and_writes_no_scan() {
         stderr.contains("head 1: camera took 11 frames for 12 triggers"),
         "{stderr}"
     );
-    assert!(!folders.out.join("scan.ply").exists());
-    assert!(!folders.out.join("report.json").exists());
+    assert_no_outputs(&folders.out);
+    let _ = std::fs::remove_dir_all(&folders.root);
+}
+
+/// Every file a scan writes, each as an earlier run's.
+fn seed_earlier_run(out: &Path) {
+    std::fs::create_dir_all(out).unwrap();
+    for name in slscan::scan::output::output_files() {
+        std::fs::write(out.join(name), b"an earlier run").unwrap();
+    }
+}
+
+/// No file of a scan in `out`, neither this run's nor an earlier one's.
+fn assert_no_outputs(out: &Path) {
+    for name in slscan::scan::output::output_files() {
+        assert!(!out.join(&name).exists(), "{name} left behind");
+    }
+}
+
+/// Folders of a run that never reaches the board.
+fn offline_folders(name: &str) -> Folders {
+    let root = std::env::temp_dir().join(format!("slscan-hw-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    std::fs::create_dir_all(root.join("frames/A")).unwrap();
+    std::fs::create_dir_all(root.join("frames/B")).unwrap();
+    Folders {
+        frames: root.join("frames"),
+        patterns: root.join("patterns"),
+        out: root.join("out"),
+        root,
+    }
+}
+
+#[test]
+fn a_link_failing_at_connect_leaves_no_output_old_or_new() {
+    let folders = offline_folders("connect");
+    seed_earlier_run(&folders.out);
+    let out = slscan_scan(&folders.root.join("no-such-port"), &folders, &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("connecting to the sync board"), "{stderr}");
+    assert_no_outputs(&folders.out);
+    let _ = std::fs::remove_dir_all(&folders.root);
+}
+
+#[cfg(unix)]
+#[test]
+fn an_output_name_that_is_a_symlink_is_refused_before_the_board_is_touched() {
+    let folders = offline_folders("symlink");
+    std::fs::create_dir_all(&folders.out).unwrap();
+    std::fs::write(folders.root.join("keep.txt"), b"not ours").unwrap();
+    std::os::unix::fs::symlink(folders.root.join("keep.txt"), folders.out.join("scan.ply"))
+        .unwrap();
+    std::fs::write(folders.out.join("report.json"), b"an earlier run").unwrap();
+    let out = slscan_scan(&folders.root.join("no-such-port"), &folders, &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("is a symlink, not a regular file"),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("connecting"),
+        "refused before the board: {stderr}"
+    );
+    let link = std::fs::symlink_metadata(folders.out.join("scan.ply")).unwrap();
+    assert!(link.file_type().is_symlink(), "the link is left as it was");
+    assert_eq!(
+        std::fs::read(folders.root.join("keep.txt")).unwrap(),
+        b"not ours"
+    );
+    assert!(
+        folders.out.join("report.json").exists(),
+        "nothing removed before the check"
+    );
     let _ = std::fs::remove_dir_all(&folders.root);
 }
 

@@ -316,6 +316,26 @@ impl<'a> IcpTarget<'a> {
         })
     }
 
+    /// Each source point moved by `transform` that has a target point
+    /// within `gate` metres: where it lies and its signed point-to-plane
+    /// residual (metres), for checking how well the two clouds agree.
+    pub fn signed_residuals(
+        &self,
+        source: &[Vector3<f64>],
+        transform: &Isometry3<f64>,
+        gate: f64,
+    ) -> Vec<(Vector3<f64>, f64)> {
+        let gate2 = gate * gate;
+        source
+            .par_iter()
+            .filter_map(|p| {
+                let q = transform.transform_point(&Point3::from(*p)).coords;
+                let (j, _) = nearest_within(&self.tree, &q, gate2)?;
+                Some((q, self.normals[j].dot(&(q - self.points[j]))))
+            })
+            .collect()
+    }
+
     /// Nearest-target pairs of the moved source within `gate` metres.
     fn pairs(
         &self,

@@ -60,6 +60,17 @@ pub fn merge_clouds(
     b: &PointCloud,
     params: &MergeParams,
 ) -> Result<(PointCloud, MergeReport), FusionError> {
+    merge_clouds_indexed(a, b, params).map(|(cloud, report, _)| (cloud, report))
+}
+
+/// [`merge_clouds`], also returning which points of `b` were kept on their
+/// own: the output is A's points in A's order, then those, in this order
+/// (so per-point data the merge does not carry, such as colour, follows).
+pub fn merge_clouds_indexed(
+    a: &PointCloud,
+    b: &PointCloud,
+    params: &MergeParams,
+) -> Result<(PointCloud, MergeReport, Vec<usize>), FusionError> {
     if !(params.radius_m.is_finite() && params.radius_m > 0.0) {
         return Err(FusionError::BadParameter {
             name: "radius_m",
@@ -129,7 +140,7 @@ pub fn merge_clouds(
         b_kept: kept.len(),
         output_points: out.len(),
     };
-    Ok((out, report))
+    Ok((out, report, kept))
 }
 
 /// Running per-A-point state while duplicates are folded in.

@@ -21,8 +21,10 @@ pub mod synthetic;
 use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 
+pub mod agreement;
+pub use agreement::{shape_agreement, ShapeAgreement};
 pub use icp::{register, IcpParams, IcpResult, IcpTarget, RobustKernel};
-pub use merge::{merge_clouds, DuplicateRule, MergeParams, MergeReport};
+pub use merge::{merge_clouds, merge_clouds_indexed, DuplicateRule, MergeParams, MergeReport};
 pub use normals::estimate_normals;
 
 /// A point cloud in metres, with optional per-point normals and quality.
@@ -120,7 +122,16 @@ pub struct FusedClouds {
     pub icp: IcpResult,
     /// Point counts of the merge.
     pub merge: MergeReport,
+    /// The points of B kept on their own, in the cloud's order after A's.
+    pub b_kept: Vec<usize>,
+    /// How well the registered clouds agree in shape (`None` when their
+    /// overlap has no cell with enough points).
+    pub agreement: Option<ShapeAgreement>,
 }
+
+/// Cell size of [`FusedClouds::agreement`]: a few per cent of a part, so a
+/// bend shows across cells while each cell holds hundreds of points.
+pub const AGREEMENT_CELL_M: f64 = 0.01;
 
 /// The whole fusion step: normals of A (unless it has them), ICP of B onto
 /// A from the calibrated `b_to_a_initial`, then one merged cloud in A's frame.
@@ -146,9 +157,24 @@ pub fn fuse_heads(
         };
         &with_normals
     };
-    let icp = register(b, target, b_to_a_initial, &params.icp)?;
-    let (cloud, merge) = merge_clouds(a, &b.transformed(&icp.transform), &params.merge)?;
-    Ok(FusedClouds { cloud, icp, merge })
+    b.validate("source")?;
+    let prepared = IcpTarget::new(target)?;
+    let icp = prepared.register(&b.points, b_to_a_initial, &params.icp)?;
+    let gate = params.icp.final_gate_m;
+    let agreement = shape_agreement(
+        &prepared.signed_residuals(&b.points, &icp.transform, gate),
+        AGREEMENT_CELL_M,
+        gate,
+    );
+    let (cloud, merge, b_kept) =
+        merge_clouds_indexed(a, &b.transformed(&icp.transform), &params.merge)?;
+    Ok(FusedClouds {
+        cloud,
+        icp,
+        merge,
+        b_kept,
+        agreement,
+    })
 }
 
 /// What can go wrong while registering or merging clouds.
@@ -233,7 +259,7 @@ pub enum FusionError {
         iteration: usize,
     },
     /// The estimate left the basin of the initial guess or became non-finite.
-    #[error("ICP diverged at iteration {iteration}: correction {rotation_deg} deg / {translation_m} m from the initial guess")]
+    #[error("ICP diverged at iteration {iteration}: correction {rotation_deg:.2} deg / {:.1} mm from the initial guess", translation_m * 1e3)]
     Diverged {
         /// ICP iteration (0-based).
         iteration: usize,

@@ -290,26 +290,44 @@ pub fn save_gray_png(path: &Path, img: &Raster<f32>, sixteen_bit: bool) -> Resul
 
 /// Writes an RGB8 raster as PNG, atomically.
 pub fn save_rgb_png(path: &Path, img: &Raster<[u8; 3]>) -> Result<(), ImageError> {
+    let bytes = encode_rgb_png(img).map_err(|source| ImageError::Decode {
+        path: path.to_owned(),
+        source,
+    })?;
+    save_bytes(path, &bytes)
+}
+
+/// An RGB8 raster as PNG file bytes (for writing, or embedding in a page).
+pub fn encode_rgb_png(img: &Raster<[u8; 3]>) -> Result<Vec<u8>, image::ImageError> {
     let data = img.data.iter().flatten().copied().collect();
     let buf = ImageBuffer::<Rgb<u8>, _>::from_raw(img.width as u32, img.height as u32, data)
         .expect("sized");
-    save_png(path, &DynamicImage::ImageRgb8(buf))
+    encode_png(&DynamicImage::ImageRgb8(buf))
 }
 
-fn save_png(path: &Path, img: &DynamicImage) -> Result<(), ImageError> {
+fn encode_png(img: &DynamicImage) -> Result<Vec<u8>, image::ImageError> {
     let mut bytes = Vec::new();
     img.write_to(
         &mut std::io::Cursor::new(&mut bytes),
         image::ImageFormat::Png,
-    )
-    .map_err(|source| ImageError::Decode {
-        path: path.to_owned(),
-        source,
-    })?;
-    super::write_atomically(path, |w| w.write_all(&bytes)).map_err(|source| ImageError::Io {
+    )?;
+    Ok(bytes)
+}
+
+/// Writes encoded file bytes (a PNG) atomically.
+pub fn save_bytes(path: &Path, bytes: &[u8]) -> Result<(), ImageError> {
+    super::write_atomically(path, |w| w.write_all(bytes)).map_err(|source| ImageError::Io {
         path: path.to_owned(),
         source,
     })
+}
+
+fn save_png(path: &Path, img: &DynamicImage) -> Result<(), ImageError> {
+    let bytes = encode_png(img).map_err(|source| ImageError::Decode {
+        path: path.to_owned(),
+        source,
+    })?;
+    save_bytes(path, &bytes)
 }
 
 /// Maps a raster to [0, 1] for viewing: NaN -> 0, finite values stretched min..max.

@@ -159,6 +159,26 @@ pub struct FusedReport {
     pub pose_error_vs_truth_deg: Option<f64>,
     /// The same: translation, micrometres.
     pub pose_error_vs_truth_um: Option<f64>,
+    /// The calibration's checks that need no truth (null without ICP).
+    pub self_check: Option<SelfCheckReport>,
+    /// Why the heads could not be fused (null when they were): then there
+    /// is no scan.ply, only the per-head clouds.
+    pub failure: Option<String>,
+}
+
+/// The calibration's checks that need no truth.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct SelfCheckReport {
+    /// "consistent", "head-to-head pose off", or "camera intrinsics or projector model off".
+    pub verdict: String,
+    /// ICP's rotation of the calibrated head-to-head pose, degrees.
+    pub pose_correction_deg: f64,
+    /// ICP's translation at the overlap, millimetres.
+    pub pose_correction_mm: f64,
+    /// Systematic shape disagreement of the registered heads, micrometres.
+    pub shape_disagreement_um: Option<f64>,
+    /// What noise alone gives for that figure, micrometres.
+    pub shape_noise_um: Option<f64>,
 }
 
 /// Size of a rigid fit.
@@ -296,6 +316,8 @@ mod tests {
                 }),
                 pose_error_vs_truth_deg: None,
                 pose_error_vs_truth_um: Some(0.0),
+                self_check: None,
+                failure: None,
             },
             warnings: Vec::new(),
             timings_ms: [("setup".to_string(), 1.0)].into(),

@@ -307,7 +307,6 @@ pub fn resolve_measured_overlap(
                      (--dealias mask)",
                     HEAD_NAMES[h], params.grow_px
                 );
-                tracing::warn!("{warning}");
                 warnings.push(warning);
                 mask_pixels(frames, mask);
                 overlaps.push(both);
@@ -349,7 +348,6 @@ pub fn resolve_measured_overlap(
                 stats.inconsistent,
                 stats.bad_input
             );
-            tracing::warn!("{warning}");
             warnings.push(warning);
         }
         overlaps.push(both);

@@ -37,6 +37,31 @@ pub fn from_fusion(cloud: &fusion::PointCloud) -> PointCloud {
     }
 }
 
+/// The fused cloud with the heads' normals and colours, which the merge
+/// does not carry: its points are A's in order, then B's `b_kept` (`b_in_a`
+/// already moved into A's frame). An attribute one head lacks is left out.
+pub(crate) fn with_head_attributes(
+    mut fused: PointCloud,
+    a: &PointCloud,
+    b_in_a: &PointCloud,
+    b_kept: &[usize],
+) -> PointCloud {
+    fn join<T: Copy>(a: Option<&Vec<T>>, b: Option<&Vec<T>>, kept: &[usize]) -> Option<Vec<T>> {
+        let (a, b) = (a?, b?);
+        Some(
+            a.iter()
+                .copied()
+                .chain(kept.iter().map(|&i| b[i]))
+                .collect(),
+        )
+    }
+    if fused.len() == a.len() + b_kept.len() {
+        fused.normals = join(a.normals.as_ref(), b_in_a.normals.as_ref(), b_kept);
+        fused.colours = join(a.colours.as_ref(), b_in_a.colours.as_ref(), b_kept);
+    }
+    fused
+}
+
 /// Points as `f64` vectors.
 pub(crate) fn points_f64(cloud: &PointCloud) -> Vec<Vector3<f64>> {
     cloud

@@ -7,7 +7,8 @@ use nalgebra::{Isometry3, Vector3};
 use super::clouds::to_fusion;
 use super::{Mode, ScanConfig, ScanError};
 use crate::fusion::{
-    self, merge_clouds, DuplicateRule, FuseParams, FusionError, IcpParams, IcpResult, MergeParams,
+    self, merge_clouds_indexed, DuplicateRule, FuseParams, FusionError, IcpParams, IcpResult,
+    MergeParams,
 };
 use crate::point_cloud::PointCloud;
 
@@ -17,6 +18,10 @@ pub struct Fused {
     pub cloud: fusion::PointCloud,
     /// ICP of B onto A.
     pub icp: Option<IcpResult>,
+    /// The points of B kept on their own (the cloud is A's points, then these).
+    pub b_kept: Vec<usize>,
+    /// How well the registered clouds agree in shape (needs ICP).
+    pub agreement: Option<fusion::ShapeAgreement>,
 }
 
 /// Fuses `b` (head B's frame) into `a` (head A's), starting from the
@@ -37,11 +42,16 @@ pub fn fuse(
                 translation_um = f.icp.translation_correction_m * 1e6,
                 overlap_rmse_um = f.icp.overlap_rmse_m * 1e6,
                 merged = f.merge.b_merged,
+                systematic_um = f.agreement.map(|a| a.systematic_rms_m * 1e6),
+                cell_noise_um = f.agreement.map(|a| a.noise_rms_m * 1e6),
+                cells = f.agreement.map(|a| a.cells),
                 "ICP refined the calibrated head-to-head pose"
             );
             Ok(Fused {
                 cloud: f.cloud,
                 icp: Some(f.icp),
+                b_kept: f.b_kept,
+                agreement: f.agreement,
             })
         }
         Err(FusionError::NoOverlap {
@@ -51,10 +61,15 @@ pub fn fuse(
                 "simultaneous mode: the heads share no unaliased surface ({correspondences} ICP \
                  correspondences), so the clouds are merged with the calibrated pose, NOT refined by ICP"
             );
-            tracing::warn!("{warning}");
             warnings.push(warning);
-            let (cloud, _) = merge_clouds(&a, &b.transformed(a_from_b), &params.merge)?;
-            Ok(Fused { cloud, icp: None })
+            let (cloud, _, b_kept) =
+                merge_clouds_indexed(&a, &b.transformed(a_from_b), &params.merge)?;
+            Ok(Fused {
+                cloud,
+                icp: None,
+                b_kept,
+                agreement: None,
+            })
         }
         Err(e) => Err(e.into()),
     }

@@ -29,6 +29,7 @@ pub mod measure;
 pub mod metrics;
 pub mod output;
 pub mod plan;
+pub mod self_check;
 pub mod spheres;
 pub mod truth;
 pub mod truth_frame;
@@ -45,7 +46,7 @@ use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
 use crate::rig::{Board, Camera, Projector, RigError};
-use clouds::{from_fusion, transformed};
+use clouds::{from_fusion, transformed, with_head_attributes};
 use metrics::PixelAccuracy;
 pub use truth::{CameraTruth, GroundTruth};
 
@@ -189,6 +190,12 @@ pub enum ScanError {
         /// Why.
         source: crate::demultiplex::DemuxError,
     },
+    /// A fringe period that cannot be projected (or none at all).
+    #[error("fringe period {period} px: give one or more periods of at least 2 projector pixels (--periods)")]
+    BadPeriod {
+        /// The offending period (NaN when none was given).
+        period: f64,
+    },
     /// A pre-compensation gamma that is not a positive finite number.
     #[error("pre-compensation gamma {gamma} is not a positive finite number")]
     BadGamma {
@@ -258,8 +265,8 @@ pub enum Progress {
 pub struct HeadResult {
     /// "A" or "B".
     pub name: &'static str,
-    /// The first fringe frame the camera took (for pictures).
-    pub first_frame: Raster<f32>,
+    /// The mean of the camera's frames and its saturated pixels (pictures).
+    pub frames: crate::pictures::FrameSummary,
     /// Per-pixel reconstruction, head frame.
     pub reconstruction: Reconstruction,
     /// The cloud moved into head A's frame (the fused frame) by the B->A
@@ -308,6 +315,11 @@ pub struct FusedResult {
     pub icp: Option<IcpResult>,
     /// Figures against the ground truth (`None` on hardware).
     pub truth: Option<FusedTruth>,
+    /// The calibration's checks that need no truth (two heads with ICP).
+    pub self_check: Option<self_check::SelfCheck>,
+    /// Why the heads could not be fused (then the cloud is empty and only
+    /// the per-head clouds and the report are written).
+    pub failure: Option<String>,
 }
 
 /// The fused cloud's figures against the ground truth.
@@ -360,6 +372,16 @@ pub fn check_before_capture(
         .filter(|g| !(g.is_finite() && *g > 0.0))
     {
         return Err(ScanError::BadGamma { gamma });
+    }
+    if config.periods_px.is_empty() {
+        return Err(ScanError::BadPeriod { period: f64::NAN });
+    }
+    if let Some(&period) = config
+        .periods_px
+        .iter()
+        .find(|p| !(p.is_finite() && **p >= 2.0))
+    {
+        return Err(ScanError::BadPeriod { period });
     }
     let heads = calibration.heads.len();
     if heads == 0 || heads > protocol::limits::MAX_HEADS.min(HEAD_NAMES.len()) {
@@ -474,25 +496,52 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         name: "fuse",
         total: 1,
     });
+    let mut self_check = None;
+    let mut fusion_failure = None;
     let (fused_cloud, icp, a_from_head) = match (&recons[..], calibration.head_to_head) {
         ([a, b], Some(a_to_b)) => {
             let a_from_b_calibrated = a_to_b.to_isometry().inverse();
-            let fused = fuse::fuse(
+            match fuse::fuse(
                 &a.cloud,
                 &b.cloud,
                 &a_from_b_calibrated,
                 config,
                 &mut warnings,
-            )?;
-            let a_from_b_used = fused
-                .icp
-                .as_ref()
-                .map_or(a_from_b_calibrated, |icp| icp.transform);
-            (
-                from_fusion(&fused.cloud),
-                fused.icp,
-                vec![Isometry3::identity(), a_from_b_used],
-            )
+            ) {
+                Ok(fused) => {
+                    let a_from_b_used = fused
+                        .icp
+                        .as_ref()
+                        .map_or(a_from_b_calibrated, |icp| icp.transform);
+                    if let Some(icp) = &fused.icp {
+                        let c = self_check::check(icp, fused.agreement.as_ref());
+                        if let Some(w) = self_check::warning(&c) {
+                            warnings.push(w);
+                        }
+                        self_check = Some(c);
+                    }
+                    let cloud = with_head_attributes(
+                        from_fusion(&fused.cloud),
+                        &a.cloud,
+                        &transformed(&b.cloud, &a_from_b_used),
+                        &fused.b_kept,
+                    );
+                    (cloud, fused.icp, vec![Isometry3::identity(), a_from_b_used])
+                }
+                // Still a result: the per-head clouds (by the calibrated
+                // pose) and a report that says why there is no fused one.
+                Err(ScanError::Fusion(e)) => {
+                    let why = self_check::fusion_failure(&e);
+                    warnings.push(why.clone());
+                    fusion_failure = Some(why);
+                    (
+                        PointCloud::default(),
+                        None,
+                        vec![Isometry3::identity(), a_from_b_calibrated],
+                    )
+                }
+                Err(e) => return Err(e),
+            }
         }
         _ => (recons[0].cloud.clone(), None, vec![Isometry3::identity()]),
     };
@@ -506,10 +555,17 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
                 name: "measure",
                 total: 1,
             });
+            // Without a fused cloud the heads are still measured; the
+            // fused figures (of head A alone then) are dropped below.
+            let measured_fused = if fusion_failure.is_some() {
+                &recons[0].cloud
+            } else {
+                &fused_cloud
+            };
             let m = measure::measure(
                 truth,
                 &recons,
-                &fused_cloud,
+                measured_fused,
                 &a_from_head,
                 &aliased_masks,
                 &mut warnings,
@@ -524,7 +580,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     let (mut head_truths, fused_truth, surface_samples) = match measured {
         Some(m) => (
             m.heads.into_iter().map(Some).collect(),
-            Some(m.fused),
+            Some(m.fused).filter(|_| fusion_failure.is_none()),
             Some(m.surface_samples),
         ),
         None => ((0..heads).map(|_| None).collect::<Vec<_>>(), None, None),
@@ -534,7 +590,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         .enumerate()
         .map(|(h, recon)| HeadResult {
             name: HEAD_NAMES[h],
-            first_frame: captured.raw[h][0].clone(),
+            frames: crate::pictures::summarise_frames(&captured.raw[h]),
             cloud_in_a: transformed(&recon.cloud, &a_from_head[h]),
             predicted_rms_m: measure::predicted_rms_m(&recon),
             reconstruction: recon,
@@ -551,6 +607,8 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             cloud: fused_cloud,
             icp,
             truth: fused_truth,
+            self_check,
+            failure: fusion_failure,
         },
         surface_samples,
         timings_ms: clock.timings,
@@ -612,6 +670,15 @@ mod tests {
         ));
         simultaneous.periods_px = dealias_periods_px(1280);
         check_before_capture(&rig(2, true), &simultaneous).unwrap();
+        // Periods that cannot be projected, refused before any capture.
+        for bad in [vec![], vec![0.0, 0.0, 0.0], vec![20.0, f64::NAN]] {
+            let mut c = config.clone();
+            c.periods_px = bad;
+            assert!(matches!(
+                check_before_capture(&rig(1, false), &c),
+                Err(ScanError::BadPeriod { .. })
+            ));
+        }
         // Learned de-aliasing with no network loaded.
         simultaneous.dealias = crate::dealias::DealiasMethod::Learned;
         assert!(matches!(

@@ -4,15 +4,18 @@
 use std::path::{Path, PathBuf};
 
 use super::spheres::{centre_distance_error_m, SphereFigures};
-use super::{Mode, ScanResult};
+use super::{Mode, ScanResult, HEAD_NAMES};
 use crate::io::cloud_render::{render_cloud, splat_radius_for, CloudView};
-use crate::io::images::save_rgb_png;
-use crate::io::images::{normalise_for_view, save_gray_png, ImageError};
+use crate::io::images::{encode_rgb_png, save_bytes, ImageError};
+use crate::io::outputs::{OutputSet, OutputSetError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
     write_report, AliasedMaskReport, DealiasReport, FrameFitReport, FrameOffset, FusedReport,
-    HeadReport, IcpReport, NetworkRunReport, ReportError, ScanReport, SphereReport,
+    HeadReport, IcpReport, NetworkRunReport, ReportError, ScanReport, SelfCheckReport,
+    SphereReport,
 };
+use crate::io::report_html::PagePicture;
+use crate::pictures::{head_pictures, HeadPictures, KINDS};
 use crate::raster::Raster;
 
 /// What can go wrong writing a scan.
@@ -26,14 +29,12 @@ pub enum OutputError {
         /// Why.
         source: std::io::Error,
     },
-    /// An earlier run's output could not be removed.
-    #[error("removing the earlier run's {path}: {source}")]
-    Stale {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        source: std::io::Error,
-    },
+    /// An earlier run's output could not be removed (or is not a regular file).
+    #[error("clearing the earlier run's outputs")]
+    Stale(#[from] OutputSetError),
+    /// A picture could not be encoded.
+    #[error("encoding a picture")]
+    Encode(#[from] image::ImageError),
     /// A picture.
     #[error(transparent)]
     Image(#[from] ImageError),
@@ -45,33 +46,36 @@ pub enum OutputError {
     Report(#[from] ReportError),
 }
 
-/// Every file [`write_scan`] writes into its folder.
+/// Every file [`write_scan`] writes into its folder (for either head).
 pub fn output_files() -> Vec<String> {
-    let mut files: Vec<String> = ["scan.ply", "report.json", "head_a.ply", "head_b.ply"]
+    let mut files: Vec<String> = ["scan.ply", "report.json", "report.html"]
         .map(String::from)
         .to_vec();
-    for kind in ["camera", "phase", "depth", "error"] {
-        for head in ["a", "b"] {
-            files.push(format!("{kind}_{head}.png"));
-        }
+    for head in HEAD_NAMES {
+        let tag = head.to_lowercase();
+        files.push(format!("head_{tag}.ply"));
+        files.extend(KINDS.iter().map(|kind| format!("{kind}_{tag}.png")));
     }
     files.extend(CLOUD_VIEWS.map(|(name, ..)| format!("cloud_{name}.png")));
+    // Earlier versions' picture names, so an old run's leave too.
+    for old in ["camera", "phase", "error"] {
+        files.extend(HEAD_NAMES.map(|h| format!("{old}_{}.png", h.to_lowercase())));
+    }
     files
+}
+
+/// [`output_files`] in `dir`.
+pub fn output_set(dir: &Path) -> OutputSet {
+    OutputSet::in_dir(dir, output_files())
 }
 
 /// Removes an earlier run's outputs ([`output_files`], nothing else) from
 /// `dir`, so a scan that fails leaves no old `scan.ply` or `report.json`
-/// that could be read as its result. A missing folder or file is fine.
+/// that could be read as its result; refuses (before removing anything)
+/// when one of those names is a symlink, folder or device. A missing folder
+/// or file is fine. Call it before the rig is touched.
 pub fn remove_stale(dir: &Path) -> Result<(), OutputError> {
-    for name in output_files() {
-        let path = dir.join(name);
-        match std::fs::remove_file(&path) {
-            Ok(()) => tracing::info!(path = %path.display(), "removed an earlier run's output"),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(source) => return Err(OutputError::Stale { path, source }),
-        }
-    }
-    Ok(())
+    Ok(output_set(dir).clear()?)
 }
 
 /// The frame fits of the heads and the fused cloud (`None` without a truth).
@@ -199,6 +203,14 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                 .as_ref()
                 .and_then(|t| t.residual_pose_error)
                 .map(|(_, m)| m * um),
+            self_check: scan.fused.self_check.map(|c| SelfCheckReport {
+                verdict: c.verdict.name().into(),
+                pose_correction_deg: c.pose_rotation_deg,
+                pose_correction_mm: c.pose_translation_m * 1e3,
+                shape_disagreement_um: c.shape_rms_m.map(|s| s * um),
+                shape_noise_um: c.shape_noise_m.map(|s| s * um),
+            }),
+            failure: scan.fused.failure.clone(),
         },
         warnings: scan.warnings.clone(),
         timings_ms: scan
@@ -228,61 +240,70 @@ fn sphere_report(f: &SphereFigures) -> SphereReport {
 /// the right and above, where the relief shows.
 pub const CLOUD_VIEWS: [(&str, f64, f64); 2] = [("front", 0.0, 0.0), ("oblique", -35.0, 25.0)];
 
-/// Writes `dir/{camera,phase,depth,error}_{a,b}.png` (error: black = exact,
-/// white = 500 um or more; only with a ground truth), `cloud_{front,oblique}.png`
-/// (the fused cloud, Lambert-shaded from PCA normals), `head_a.ply`,
-/// `head_b.ply`, `report.json`, then `scan.ply`.
+/// Writes the scan into `dir`: per head the pictures of
+/// [`crate::pictures::KINDS`] (`{kind}_{a,b}.png`; the error only with a
+/// ground truth) and `head_{a,b}.ply`; `cloud_{front,oblique}.png` (the
+/// fused cloud, Lambert-shaded), `report.json`, `report.html` (every figure
+/// and picture on one self-contained page), then `scan.ply`. When any write
+/// fails, every file of this run is removed again.
 pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError> {
     std::fs::create_dir_all(dir).map_err(|source| OutputError::Dir {
         path: dir.to_owned(),
         source,
     })?;
+    let result = write_files(dir, scan);
+    if result.is_err() {
+        output_set(dir).discard();
+    }
+    result
+}
+
+fn write_files(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError> {
+    let mut page = Vec::new();
     for h in &scan.heads {
         let tag = h.name.to_lowercase();
-        save_gray_png(
-            &dir.join(format!("camera_{tag}.png")),
-            &h.first_frame,
-            false,
-        )?;
-        let phase = h.reconstruction.phase_u();
-        save_gray_png(
-            &dir.join(format!("phase_{tag}.png")),
-            &normalise_for_view(&phase),
-            true,
-        )?;
-        let depth = h.reconstruction.depth_m();
-        save_gray_png(
-            &dir.join(format!("depth_{tag}.png")),
-            &normalise_for_view(&depth),
-            true,
-        )?;
-        if let Some(truth) = &h.truth {
-            // Error picture: 0 = exact, white = 500 um or more.
-            let err = Raster {
-                width: truth.error_m.width,
-                height: truth.error_m.height,
-                data: truth
-                    .error_m
-                    .data
-                    .iter()
-                    .map(|e| {
-                        if e.is_finite() {
-                            (e / 500e-6).min(1.0)
-                        } else {
-                            0.0
-                        }
-                    })
-                    .collect(),
-            };
-            save_gray_png(&dir.join(format!("error_{tag}.png")), &err, false)?;
+        let pictures = head_pictures(&HeadPictures {
+            head: &format!("head {}", h.name),
+            reconstruction: &h.reconstruction,
+            finest_period_px: scan.config.periods_px.first().copied().unwrap_or(1.0),
+            frames: &h.frames,
+            error_m: h.truth.as_ref().map(|t| &t.error_m),
+        })?;
+        for p in pictures {
+            let file = format!("{}_{tag}.png", p.kind);
+            save_bytes(&dir.join(&file), &p.png)?;
+            page.push(PagePicture {
+                file,
+                caption: p.caption,
+                png: p.png,
+            });
         }
         write_ply(&dir.join(format!("head_{tag}.ply")), &h.cloud_in_a)?;
     }
-    write_cloud_pictures(dir, &scan.fused.cloud, scan.config.camera_px)?;
+    if scan.fused.failure.is_none() {
+        page.extend(write_cloud_pictures(
+            dir,
+            &scan.fused.cloud,
+            scan.config.camera_px,
+        )?);
+    }
     let report = report(scan);
     write_report(&dir.join("report.json"), &report)?;
-    write_ply(&dir.join("scan.ply"), &scan.fused.cloud)?;
+    write_page(
+        &dir.join("report.html"),
+        &crate::io::report_html::scan_page(&report, &page),
+    )?;
+    // Without a fused cloud there is no scan: the per-head clouds and the
+    // report say why.
+    if scan.fused.failure.is_none() {
+        write_ply(&dir.join("scan.ply"), &scan.fused.cloud)?;
+    }
     Ok(report)
+}
+
+/// Writes the report page atomically.
+fn write_page(path: &Path, html: &str) -> Result<(), OutputError> {
+    Ok(save_bytes(path, html.as_bytes())?)
 }
 
 /// `cloud_{view}.png` for each of [`CLOUD_VIEWS`]: normals from the
@@ -292,7 +313,7 @@ fn write_cloud_pictures(
     dir: &Path,
     cloud: &crate::point_cloud::PointCloud,
     size_px: (u32, u32),
-) -> Result<(), OutputError> {
+) -> Result<Vec<PagePicture>, OutputError> {
     let estimated: Option<Vec<[f32; 3]>> = match &cloud.normals {
         Some(_) => None,
         None => crate::fusion::estimate_normals(
@@ -309,6 +330,7 @@ fn write_cloud_pictures(
     };
     let normals = cloud.normals.as_deref().or(estimated.as_deref());
     let splat = splat_radius_for(cloud.len(), size_px);
+    let mut page = Vec::new();
     for (name, yaw_deg, pitch_deg) in CLOUD_VIEWS {
         let picture = match CloudView::framing(&cloud.points_m, yaw_deg, pitch_deg, size_px) {
             Some(view) => render_cloud(&cloud.points_m, normals, &view, splat),
@@ -318,9 +340,16 @@ fn write_cloud_pictures(
                 crate::io::cloud_render::BACKGROUND,
             ),
         };
-        save_rgb_png(&dir.join(format!("cloud_{name}.png")), &picture)?;
+        let file = format!("cloud_{name}.png");
+        let png = encode_rgb_png(&picture)?;
+        save_bytes(&dir.join(&file), &png)?;
+        page.push(PagePicture {
+            file,
+            caption: format!("fused cloud, {name} view (shaded by its normals)"),
+            png,
+        });
     }
-    Ok(())
+    Ok(page)
 }
 
 #[cfg(test)]

@@ -85,7 +85,6 @@ pub fn fit_frame(
             let warning = format!(
                 "{what}: no rigid fit onto the truth ({e}); measured in the true camera frame"
             );
-            tracing::warn!("{warning}");
             warnings.push(warning);
             keep(Isometry3::identity())
         }

@@ -112,6 +112,21 @@ pub fn twin_calibration(rig: &Rig, heads: usize) -> RigCalibration {
     }
 }
 
+/// The true rig calibration of built-in scene `scene` at `detail`'s sizes
+/// (every head of the scene), for writing as a rig file.
+pub fn scene_calibration(
+    scene: &str,
+    detail: &hil_sim::twin::scenes::Detail,
+) -> Result<RigCalibration, TwinError> {
+    let (_, rig) = hil_sim::twin::scenes::built_in(scene, detail)?;
+    let heads = rig
+        .cameras
+        .len()
+        .min(rig.projectors.len())
+        .min(HEAD_NAMES.len());
+    Ok(twin_calibration(&rig, heads))
+}
+
 /// Head A's frame -> head B's frame.
 pub fn b_from_a(rig: &Rig) -> Isometry3<f64> {
     head_from_world(rig, 1) * head_from_world(rig, 0).inverse()

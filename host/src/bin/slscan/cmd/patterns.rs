@@ -16,9 +16,9 @@ use slscan::raster::Raster;
 pub enum Kind {
     /// N-step sinusoidal fringes for each `--periods` entry (period-major).
     Fringes,
-    /// Gray codes of `--block` px, plus the `--block - 1` one-pixel shifted sets (seed 004).
+    /// Gray codes of `--block` px, plus the `--block - 1` one-pixel shifted sets (pixel-shift fine matching).
     Gray,
-    /// Seed 001's 8-direction RGB triple-frequency patterns.
+    /// The 24 binary patterns of the high-speed colour mode: 8 fringe directions x 3 frequencies on R, G, B.
     Tfc,
 }
 

@@ -3,16 +3,17 @@
 //! Frames are taken in file-name order: all steps of the finest period first, then the
 //! next period (`--periods`), columns first; with `--both`, the same again for rows.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
 use slscan::calibration::read_rig;
-use slscan::io::images::{
-    list_images, load_set, normalise_for_view, save_gray_png, ExposureLimits, ImageError,
-};
+use slscan::io::images::{list_images, load_set, save_bytes, ExposureLimits, ImageError};
 use slscan::io::npy::write_npy_f32;
+use slscan::io::outputs::OutputSet;
 use slscan::io::ply::write_ply;
+use slscan::io::report_html::{render, Page, PagePicture, Table};
+use slscan::pictures::{head_pictures, summarise_frames, HeadPictures, KINDS};
 use slscan::raster::Raster;
 use slscan::reconstruct::{Directions, ReconstructConfig, Reconstructor};
 use slscan::unwrap::PixelStatus;
@@ -53,16 +54,81 @@ pub struct Args {
     /// Saturated share tolerated per frame, percent.
     #[arg(long, default_value_t = 5.0)]
     max_saturated_percent: f64,
-    /// Output PLY file.
+    /// Output PLY file (its report page is written beside it, .html).
     #[arg(long)]
     out: PathBuf,
-    /// Folder for phase/depth/modulation pictures (PNG) and depth.npy.
+    /// Folder for the pictures (camera mean, projector column, depth,
+    /// fringe modulation; PNG with scales and legends) and depth.npy.
     #[arg(long)]
     pictures: Option<PathBuf>,
 }
 
-/// Runs `slscan reconstruct`.
+/// Runs `slscan reconstruct`: checks the arguments, clears this command's
+/// earlier outputs, reconstructs, then writes the pictures, `depth.npy`, the
+/// report page and the cloud last; when anything fails, none of this run's
+/// files is left.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    check_args(&args)?;
+    let outputs = output_set(&args);
+    outputs.clear()?;
+    let result = reconstruct_and_write(&args);
+    if result.is_err() {
+        outputs.discard();
+    }
+    result
+}
+
+/// Every file this command writes: the cloud, its report page beside it
+/// (`cloud.ply` -> `cloud.html`) and, with `--pictures`, the pictures and `depth.npy`.
+fn output_set(args: &Args) -> OutputSet {
+    let mut set = OutputSet::new([args.out.clone(), page_path(&args.out)]);
+    if let Some(dir) = &args.pictures {
+        set = set.with(OutputSet::in_dir(
+            dir,
+            KINDS
+                .iter()
+                .map(|k| format!("{k}.png"))
+                .chain(["depth.npy".to_string()]),
+        ));
+    }
+    set
+}
+
+/// The report page's path: the cloud's with `.html`.
+fn page_path(cloud: &Path) -> PathBuf {
+    cloud.with_extension("html")
+}
+
+/// What can be refused before any image is read.
+fn check_args(args: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !args.periods.is_empty(),
+        "--periods: give at least one period"
+    );
+    if let Some(p) = args.periods.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
+        anyhow::bail!("--periods: {p} is not a positive number of projector pixels");
+    }
+    anyhow::ensure!(
+        args.steps >= 3,
+        "--steps {}: phase shifting needs at least 3",
+        args.steps
+    );
+    anyhow::ensure!(
+        !args.out.is_dir(),
+        "--out {} is a folder; give the PLY file to write",
+        args.out.display()
+    );
+    if let Some(dir) = &args.pictures {
+        anyhow::ensure!(
+            !dir.exists() || dir.is_dir(),
+            "--pictures {} exists and is not a folder",
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
     let rig = read_rig(&args.rig)?;
     let head = match &args.head {
         Some(name) => rig
@@ -95,20 +161,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_saturated_percent: args.max_saturated_percent,
         ..ExposureLimits::default()
     };
+    let mut timings = Vec::new();
     let clock = Instant::now();
     let frames = load_set(&paths, &limits)?;
-    tracing::info!(
-        stage = "load",
-        frames = frames.len(),
-        ms = ms_since(clock),
-        "stage done"
-    );
+    lap(&mut timings, "load", clock);
     let refs: Vec<&Raster<f32>> = frames.iter().collect();
     let clock = Instant::now();
     let rec = Reconstructor::from_head(head, config)?;
     let (u, v) = refs.split_at(per_direction);
     let out = rec.reconstruct(u, args.both.then_some(v))?;
-    tracing::info!(stage = "reconstruct", ms = ms_since(clock), "stage done");
+    lap(&mut timings, "reconstruct", clock);
     anyhow::ensure!(
         !out.cloud.is_empty(),
         "no valid points: {} masked (modulation < {}), {} unreliable of {} pixels",
@@ -118,27 +180,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out.pixels.len()
     );
     let clock = Instant::now();
-    write_ply(&args.out, &out.cloud)?;
-    tracing::info!(stage = "write", ms = ms_since(clock), "stage done");
+    let pictures = head_pictures(&HeadPictures {
+        head: &format!("head {}", head.name),
+        reconstruction: &out,
+        finest_period_px: args.periods[0],
+        frames: &summarise_frames(&frames),
+        error_m: None,
+    })?;
+    let mut page_pictures = Vec::new();
     if let Some(dir) = &args.pictures {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        let depth = out.depth_m();
-        save_gray_png(&dir.join("depth.png"), &normalise_for_view(&depth), true)?;
-        save_gray_png(
-            &dir.join("phase.png"),
-            &normalise_for_view(&out.phase_u()),
-            true,
-        )?;
-        let modulation = out.modulation();
-        save_gray_png(
-            &dir.join("modulation.png"),
-            &normalise_for_view(&modulation),
-            false,
-        )?;
-        write_npy_f32(&dir.join("depth.npy"), &depth)
+        for p in &pictures {
+            save_bytes(&dir.join(format!("{}.png", p.kind)), &p.png)?;
+        }
+        write_npy_f32(&dir.join("depth.npy"), &out.depth_m())
             .with_context(|| format!("writing {}", dir.join("depth.npy").display()))?;
     }
-    println!(
+    for p in pictures {
+        page_pictures.push(PagePicture {
+            file: format!("{}.png", p.kind),
+            caption: p.caption,
+            png: p.png,
+        });
+    }
+    lap(&mut timings, "pictures", clock);
+    let summary = format!(
         "{} points -> {} ({} valid, {} masked, {} unreliable pixels)",
         out.cloud.len(),
         args.out.display(),
@@ -146,10 +212,50 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out.count(PixelStatus::Masked),
         out.count(PixelStatus::Unreliable)
     );
+    let page = render(&Page {
+        title: format!("slscan reconstruct: {}", args.images.display()),
+        warnings: vec![],
+        tables: vec![Table {
+            heading: "Reconstruction".into(),
+            rows: vec![
+                (
+                    "frames".into(),
+                    format!("{} from {}", frames.len(), args.images.display()),
+                ),
+                (
+                    "rig".into(),
+                    format!("{}, head {}", args.rig.display(), head.name),
+                ),
+                ("points".into(), out.cloud.len().to_string()),
+                (
+                    "valid pixels".into(),
+                    out.count(PixelStatus::Valid).to_string(),
+                ),
+                (
+                    "masked pixels".into(),
+                    out.count(PixelStatus::Masked).to_string(),
+                ),
+                (
+                    "unreliable pixels".into(),
+                    out.count(PixelStatus::Unreliable).to_string(),
+                ),
+            ],
+        }],
+        timings_ms: timings.clone(),
+        pictures: page_pictures,
+        raw: None,
+    });
+    save_bytes(&page_path(&args.out), page.as_bytes())?;
+    let clock = Instant::now();
+    write_ply(&args.out, &out.cloud)?;
+    lap(&mut timings, "write", clock);
+    println!("{summary}");
     Ok(())
 }
 
-/// Whole milliseconds since `start`, for the stage log.
-fn ms_since(start: Instant) -> u128 {
-    start.elapsed().as_millis()
+/// Logs a stage's time and keeps it for the page.
+fn lap(timings: &mut Vec<(String, f64)>, stage: &str, start: Instant) {
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    tracing::info!(stage, ms = format_args!("{ms:.0}"), "stage done");
+    timings.push((stage.to_string(), ms));
 }

@@ -43,9 +43,9 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Fringe periods, projector pixels, finest first (4 steps each);
-    /// default: seed 004's three pitches over the DMD width (S = 64), and
-    /// for the simultaneous mode's analytic de-aliasing four periods of
-    /// 73 / 64 / 56 / 50 fringes over the width.
+    /// default: three pitches of S + sqrt(S) + 1, S and S - sqrt(S) fringes
+    /// over the DMD width (S = 64: 73 / 64 / 56), and for the simultaneous
+    /// mode's de-aliasing four periods of 73 / 64 / 56 / 50 fringes.
     #[arg(long, value_delimiter = ',')]
     periods: Option<Vec<f64>>,
     /// Hardware: the sync board's serial port, e.g. /dev/ttyACM0.
@@ -113,7 +113,7 @@ pub struct Args {
     #[arg(long)]
     dealias_model: Option<PathBuf>,
     /// --dealias learned with a diffusion model: DDIM sampler steps
-    /// (network evaluations per tile; the seed's DDPM used 4000).
+    /// (network evaluations per tile; the published DDPM used 4000).
     #[arg(long, default_value_t = 8)]
     sampler_steps: usize,
 }
@@ -202,6 +202,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(failed)?
     };
     print_summary(&report);
+    if report.fused.failure.is_some() {
+        anyhow::bail!(
+            "scan into {} failed: the heads could not be fused (see the warning above), so no \
+             scan.ply; the per-head clouds, pictures and report are written",
+            args.out.display()
+        );
+    }
     println!("wrote {}", args.out.join("scan.ply").display());
     Ok(())
 }
@@ -271,7 +278,10 @@ fn scan_hardware(
     let calibration = read_rig(calibration_path)
         .with_context(|| format!("reading the calibration {}", calibration_path.display()))?;
     let config = hardware_config(args, mode, &calibration)?;
-    // The board first: a missing port fails before any folder is made.
+    slscan::scan::check_before_capture(&calibration, &config)?;
+    // Before any device is touched: a failed scan must not leave an
+    // earlier run's scan.ply or report.json to be read as its result.
+    scan::output::remove_stale(&args.out)?;
     let board = SerialBoard::open(port, ClientConfig::default())
         .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
     let cameras = FolderCamera::new(FolderCameraConfig {
@@ -297,9 +307,6 @@ fn scan_hardware(
     );
     let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
     let source = format!("rig file {}", calibration_path.display());
-    // As scan_to_dir does for --sim: a failed scan must not leave an
-    // earlier run's scan.ply or report.json to be read as its result.
-    scan::output::remove_stale(&args.out)?;
     let result = scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?;
     Ok(scan::output::write_scan(&args.out, &result)?)
 }
@@ -380,10 +387,11 @@ fn load_network(
 }
 
 fn print_summary(report: &ScanReport) {
-    // A figure that does not exist (no truth, no points) reads "n/a", not NaN.
+    // A figure that does not exist (no truth, no points) reads "n/a", not
+    // NaN; f1 carries its unit, which "n/a" does not.
     let f1 = |v: Option<f64>| {
         v.filter(|v| v.is_finite())
-            .map_or("n/a".to_string(), |v| format!("{v:.1}"))
+            .map_or("n/a".to_string(), |v| format!("{v:.1} um"))
     };
     let f3 = |v: Option<f64>| {
         v.filter(|v| v.is_finite())
@@ -391,7 +399,7 @@ fn print_summary(report: &ScanReport) {
     };
     for h in &report.heads {
         println!(
-            "head {}: {} points, RMSE {} um (predicted {} um; median {} um, {} over 1 mm), coverage {}",
+            "head {}: {} points, RMSE {} (predicted {}; median {}, {} over 1 mm), coverage {}",
             h.name,
             h.points,
             f1(h.rmse_um),
@@ -403,7 +411,7 @@ fn print_summary(report: &ScanReport) {
         );
         if let (Some(points), Some(pixels @ 1..)) = (h.overlap_points, h.overlap_pixels) {
             println!(
-                "head {} overlap (pixels lit by both projectors): {points} of {pixels} pixels reconstructed, RMSE {} um",
+                "head {} overlap (pixels lit by both projectors): {points} of {pixels} pixels reconstructed, RMSE {}",
                 h.name,
                 f1(h.overlap_rmse_um)
             );
@@ -454,7 +462,7 @@ fn print_summary(report: &ScanReport) {
     }
     let f = &report.fused;
     println!(
-        "fused: {} points, RMSE {} um (point-to-plane), coverage {}",
+        "fused: {} points, RMSE {} (point-to-plane), coverage {}",
         f.points,
         f1(f.rmse_um),
         f3(f.coverage)
@@ -466,6 +474,9 @@ fn print_summary(report: &ScanReport) {
         ),
         None if report.heads.len() == 1 => {
             println!("one head: its cloud is the scan (nothing to register)")
+        }
+        None if f.failure.is_some() => {
+            println!("no fused cloud: the heads could not be registered")
         }
         None => println!("no ICP: the heads share no usable surface; calibrated pose used"),
     }

@@ -1,0 +1,341 @@
+//! `report.html`: one self-contained page per run (pictures embedded as
+//! base64 PNG, no network, no external files) with the run's warnings
+//! first, its figures, timings and every picture. A short inline script
+//! counts pictures that failed to decode and says so on the page.
+
+use base64::Engine;
+
+use super::report::ScanReport;
+
+/// A picture on the page.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PagePicture {
+    /// File name beside the page (shown under the picture).
+    pub file: String,
+    /// What it shows.
+    pub caption: String,
+    /// PNG bytes.
+    pub png: Vec<u8>,
+}
+
+/// A table of figures: a heading and (name, value) rows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table {
+    /// Heading.
+    pub heading: String,
+    /// Rows.
+    pub rows: Vec<(String, String)>,
+}
+
+/// What a page shows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Page {
+    /// The page title, e.g. "slscan scan: large-part, sequential".
+    pub title: String,
+    /// Warnings, shown first.
+    pub warnings: Vec<String>,
+    /// Figures.
+    pub tables: Vec<Table>,
+    /// Stage times, milliseconds.
+    pub timings_ms: Vec<(String, f64)>,
+    /// Pictures.
+    pub pictures: Vec<PagePicture>,
+    /// The machine-readable report, shown folded (e.g. report.json's text).
+    pub raw: Option<String>,
+}
+
+/// The page as HTML.
+pub fn render(page: &Page) -> String {
+    let mut h = String::with_capacity(1 << 16);
+    h.push_str("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">");
+    h.push_str(&format!("<title>{}</title>", escape(&page.title)));
+    h.push_str(STYLE);
+    h.push_str("</head><body>\n");
+    h.push_str(&format!("<h1>{}</h1>\n", escape(&page.title)));
+    h.push_str("<p id=\"broken\" class=\"warn\" hidden></p>\n");
+    if page.warnings.is_empty() {
+        h.push_str("<p id=\"warnings\" class=\"ok\">No warnings.</p>\n");
+    } else {
+        h.push_str(&format!(
+            "<div id=\"warnings\" class=\"warn\"><h2>{} warning{}</h2><ul>",
+            page.warnings.len(),
+            if page.warnings.len() == 1 { "" } else { "s" }
+        ));
+        for w in &page.warnings {
+            h.push_str(&format!("<li>{}</li>", escape(w)));
+        }
+        h.push_str("</ul></div>\n");
+    }
+    for t in &page.tables {
+        h.push_str(&format!("<h2>{}</h2><table>", escape(&t.heading)));
+        for (k, v) in &t.rows {
+            h.push_str(&format!(
+                "<tr><th>{}</th><td>{}</td></tr>",
+                escape(k),
+                escape(v)
+            ));
+        }
+        h.push_str("</table>\n");
+    }
+    if !page.timings_ms.is_empty() {
+        h.push_str("<h2>Timings</h2><table>");
+        for (k, ms) in &page.timings_ms {
+            h.push_str(&format!(
+                "<tr><th>{}</th><td>{ms:.0} ms</td></tr>",
+                escape(k)
+            ));
+        }
+        h.push_str("</table>\n");
+    }
+    if !page.pictures.is_empty() {
+        h.push_str("<h2>Pictures</h2><div class=\"pictures\">\n");
+        let b64 = base64::engine::general_purpose::STANDARD;
+        for p in &page.pictures {
+            h.push_str(&format!(
+                "<figure><img alt=\"{}\" src=\"data:image/png;base64,{}\"><figcaption>{} <code>{}</code></figcaption></figure>\n",
+                escape(&p.caption),
+                b64.encode(&p.png),
+                escape(&p.caption),
+                escape(&p.file)
+            ));
+        }
+        h.push_str("</div>\n");
+    }
+    if let Some(raw) = &page.raw {
+        h.push_str(&format!(
+            "<details><summary>Machine-readable report</summary><pre>{}</pre></details>\n",
+            escape(raw)
+        ));
+    }
+    h.push_str(SCRIPT);
+    h.push_str("</body></html>\n");
+    h
+}
+
+const STYLE: &str = "<style>body{font-family:sans-serif;max-width:1400px;margin:1em auto;padding:0 1em}\
+table{border-collapse:collapse;margin-bottom:1em}th,td{border:1px solid #ccc;padding:2px 8px;text-align:left}\
+th{background:#f4f4f4;font-weight:normal}.warn{background:#fff0f0;border:2px solid #c00;padding:0.5em 1em}\
+.ok{color:#060}.pictures{display:flex;flex-wrap:wrap;gap:1em}figure{margin:0}img{max-width:660px;display:block}\
+</style>";
+
+/// Marks the page (and tells its reader) when a picture did not decode;
+/// `data-images` / `data-broken-images` on the body let a test read it.
+const SCRIPT: &str = "<script>window.addEventListener('load',function(){\
+var imgs=document.images,broken=0;for(var i=0;i<imgs.length;i++){if(!imgs[i].complete||imgs[i].naturalWidth===0)broken++;}\
+document.body.setAttribute('data-images',imgs.length);document.body.setAttribute('data-broken-images',broken);\
+if(broken>0){var b=document.getElementById('broken');b.hidden=false;b.textContent=broken+' picture(s) failed to load';}});\
+</script>";
+
+/// Text safe inside HTML elements and attributes.
+pub fn escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            _ => out.push(c),
+        }
+    }
+    out
+}
+
+/// A figure for a table cell: "n/a" when it does not exist.
+fn fig(v: Option<f64>, decimals: usize, unit: &str) -> String {
+    match v.filter(|v| v.is_finite()) {
+        Some(v) => format!("{v:.decimals$} {unit}").trim_end().to_string(),
+        None => "n/a".into(),
+    }
+}
+
+/// The page of a scan.
+pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
+    let mut tables = vec![Table {
+        heading: "Scan".into(),
+        rows: vec![
+            ("scene".into(), report.scene.clone()),
+            ("mode".into(), report.mode.clone()),
+            (
+                "camera".into(),
+                format!("{} x {} px", report.camera_px.0, report.camera_px.1),
+            ),
+            (
+                "projector".into(),
+                format!("{} x {} px", report.projector_px.0, report.projector_px.1),
+            ),
+            (
+                "fringe periods".into(),
+                report
+                    .periods_px
+                    .iter()
+                    .map(|p| format!("{p:.2}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+                    + " px",
+            ),
+            ("phase steps".into(), report.steps.to_string()),
+            ("calibration".into(), report.calibration.clone()),
+            (
+                "ground truth".into(),
+                if report.surface_samples.is_some() {
+                    "digital twin".into()
+                } else {
+                    "none (hardware): accuracy figures are n/a".into()
+                },
+            ),
+        ],
+    }];
+    for h in &report.heads {
+        let mut rows = vec![
+            ("points".into(), h.points.to_string()),
+            ("RMSE vs truth".into(), fig(h.rmse_um, 1, "um")),
+            (
+                "predicted RMS".into(),
+                fig(Some(h.predicted_rms_um), 1, "um"),
+            ),
+            ("median error".into(), fig(h.median_error_um, 1, "um")),
+            (
+                "points over 1 mm off".into(),
+                h.outliers_over_1mm.map_or("n/a".into(), |n| n.to_string()),
+            ),
+            ("coverage".into(), fig(h.coverage, 3, "")),
+            (
+                "overlap RMSE vs truth".into(),
+                fig(h.overlap_rmse_um, 1, "um"),
+            ),
+        ];
+        if let Some(d) = &h.dealias {
+            rows.push((
+                format!("de-aliasing ({})", d.method),
+                format!(
+                    "{} of {} overlap pixels separated ({} ill-posed, {} misfit, {} unsolved, {} inconsistent, {} bad input), {} ms",
+                    d.separated_pixels,
+                    d.attempted_pixels,
+                    d.ill_posed_pixels,
+                    d.misfit_pixels,
+                    d.unsolved_pixels,
+                    d.inconsistent_pixels,
+                    d.bad_input_pixels,
+                    d.time_ms
+                ),
+            ));
+        }
+        for s in &h.spheres {
+            rows.push((
+                format!("sphere {}", s.name),
+                format!(
+                    "radius {:.4} mm (error {:+.1} um), centre error {:.1} um, fit RMSE {:.1} um (noise limit {:.1} um)",
+                    s.radius_mm, s.radius_error_um, s.centre_error_um, s.fit_rmse_um, s.noise_limit_um
+                ),
+            ));
+        }
+        tables.push(Table {
+            heading: format!("Head {}", h.name),
+            rows,
+        });
+    }
+    let f = &report.fused;
+    let mut rows = vec![
+        ("points".into(), f.points.to_string()),
+        (
+            "RMSE vs truth (point to plane)".into(),
+            fig(f.rmse_um, 1, "um"),
+        ),
+        ("coverage".into(), fig(f.coverage, 3, "")),
+    ];
+    match &f.icp {
+        Some(icp) => rows.push((
+            "ICP correction of the calibrated pose".into(),
+            format!(
+                "{:.4} deg / {:.1} um, overlap RMSE {:.1} um, fitness {:.3}, {} iterations{}",
+                icp.rotation_deg,
+                icp.translation_um,
+                icp.overlap_rmse_um,
+                icp.fitness,
+                icp.iterations,
+                if icp.converged {
+                    ""
+                } else {
+                    " (not converged)"
+                }
+            ),
+        )),
+        None => rows.push(("ICP".into(), "none".into())),
+    }
+    if let (Some(deg), Some(um)) = (f.pose_error_vs_truth_deg, f.pose_error_vs_truth_um) {
+        rows.push((
+            "head-to-head pose used vs truth".into(),
+            format!("{deg:.4} deg / {um:.1} um"),
+        ));
+    }
+    if let Some(c) = &f.self_check {
+        rows.push((
+            "calibration self-check (no truth needed)".into(),
+            format!(
+                "{}: pose corrected by {:.3} deg / {:.2} mm; shape disagreement {} (noise alone {})",
+                c.verdict,
+                c.pose_correction_deg,
+                c.pose_correction_mm,
+                fig(c.shape_disagreement_um, 0, "um"),
+                fig(c.shape_noise_um, 0, "um")
+            ),
+        ));
+    }
+    if let Some(why) = &f.failure {
+        rows.push(("fusion failed".into(), why.clone()));
+    }
+    tables.push(Table {
+        heading: "Fused cloud".into(),
+        rows,
+    });
+    render(&Page {
+        title: format!("slscan scan: {}, {}", report.scene, report.mode),
+        warnings: report.warnings.clone(),
+        tables,
+        timings_ms: report
+            .timings_ms
+            .iter()
+            .map(|(k, v)| (k.clone(), *v))
+            .collect(),
+        pictures: pictures.to_vec(),
+        raw: serde_json::to_string_pretty(report).ok(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_page_escapes_text_embeds_pictures_and_lists_warnings() {
+        let page = Page {
+            title: "scan <a & b>".into(),
+            warnings: vec!["pose off by 1.5 deg".into()],
+            tables: vec![Table {
+                heading: "Head A".into(),
+                rows: vec![("RMSE".into(), "93.9 um".into())],
+            }],
+            timings_ms: vec![("capture".into(), 812.0)],
+            pictures: vec![PagePicture {
+                file: "depth_a.png".into(),
+                caption: "depth".into(),
+                png: vec![0x89, b'P', b'N', b'G'],
+            }],
+            raw: Some("{\"x\": 1}".into()),
+        };
+        let html = render(&page);
+        assert!(html.contains("<title>scan &lt;a &amp; b&gt;</title>"));
+        assert!(html.contains("<li>pose off by 1.5 deg</li>"));
+        assert!(html.contains("src=\"data:image/png;base64,iVBORw==\""));
+        assert!(html.contains("812 ms"));
+        assert!(html.contains("{&quot;x&quot;: 1}"));
+        assert!(!html.contains("http"), "no network references");
+        let quiet = render(&Page {
+            warnings: vec![],
+            ..page
+        });
+        assert!(quiet.contains("No warnings."));
+    }
+}
