@@ -402,6 +402,9 @@ fn cli_sim_then_images_round_trip() {
     assert!(out.status.success(), "{stderr}");
     // --sim renders with the digital twin now: no placeholder warning.
     assert!(!stderr.contains("PLACEHOLDER"), "{stderr}");
+    // The report page beside the rig file holds what was printed.
+    let page = std::fs::read_to_string(dir.join("rig.html")).unwrap();
+    assert!(page.contains("digital-twin renders") && page.contains("head-to-head"));
     let sim_rig = slscan::calibration::read_rig(&rig).expect("valid rig file");
     assert_eq!(sim_rig.heads.len(), 2);
     assert_eq!(sim_rig.heads[1].view_errors.len(), 6);
@@ -454,8 +457,11 @@ fn cli_sim_then_images_round_trip() {
         "{a:?} vs {b:?}"
     );
 
-    // A wrong board size is a clear error, and no output file appears.
+    // A wrong board size is a clear error, and no output file appears,
+    // neither this run's nor an earlier run's.
     let bad = dir.join("bad.json");
+    std::fs::write(&bad, b"an earlier run").unwrap();
+    std::fs::write(dir.join("bad.html"), b"an earlier run").unwrap();
     let out = std::process::Command::new(exe)
         .args(["calibrate", "--cols", "10", "--images"])
         .arg(views.join("B"))
@@ -466,6 +472,6 @@ fn cli_sim_then_images_round_trip() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("expected 10x6 inner corners"));
     // (The twin's board has 8x6 inner corners.)
-    assert!(!bad.exists());
+    assert!(!bad.exists() && !dir.join("bad.html").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }

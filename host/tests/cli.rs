@@ -264,6 +264,10 @@ fn patterns_writes_each_family() {
         std::fs::read_dir(&out_dir).unwrap().count()
     };
     assert_eq!(run(&["--periods", "8,9", "--steps", "3"], "fringes"), 6);
+    // A smaller set into the same folder leaves none of the larger set's
+    // tail (a DMD tool would load it as part of the set); other files stay.
+    std::fs::write(dir.join("fringes/notes.txt"), b"mine").unwrap();
+    assert_eq!(run(&["--periods", "8", "--steps", "3"], "fringes"), 3 + 1);
     // 16 blocks of 4 px -> 4 bits, times 4 shifts (0..3).
     assert_eq!(run(&["--kind", "gray", "--block", "4"], "gray"), 16);
     assert_eq!(run(&["--kind", "tfc"], "tfc"), 8);

@@ -214,16 +214,27 @@ fn bad_clouds_and_guesses_are_clear_errors() {
         ),
     ];
     let a_path = d("a.ply");
+    let (transform, merged) = (d("transform.json"), d("merged.ply"));
     for (extra, want) in cases {
-        let mut args = vec!["register", "--unit", "mm"];
-        let (b, rest) = extra.split_first().unwrap();
-        args.push(&a_path);
-        args.push(b);
-        args.extend(rest.iter().copied());
-        let out = slscan(&args);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{args:?} should fail");
-        assert!(stderr.contains(want), "{args:?}: {stderr} lacks {want}");
+        for command in ["register", "fuse"] {
+            let out_file = if command == "register" {
+                &transform
+            } else {
+                &merged
+            };
+            // An earlier run's output must not survive a failed one.
+            std::fs::write(out_file, b"an earlier run").unwrap();
+            let mut args = vec![command, "--unit", "mm", "--out", out_file];
+            let (b, rest) = extra.split_first().unwrap();
+            args.push(&a_path);
+            args.push(b);
+            args.extend(rest.iter().copied());
+            let out = slscan(&args);
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(!out.status.success(), "{args:?} should fail");
+            assert!(stderr.contains(want), "{args:?}: {stderr} lacks {want}");
+            assert!(!Path::new(out_file).exists(), "{args:?} left {out_file}");
+        }
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -40,6 +40,8 @@ pub struct Page {
     pub timings_ms: Vec<(String, f64)>,
     /// Pictures.
     pub pictures: Vec<PagePicture>,
+    /// What the command printed, shown as it was.
+    pub text: Option<String>,
     /// The machine-readable report, shown folded (e.g. report.json's text).
     pub raw: Option<String>,
 }
@@ -100,6 +102,9 @@ pub fn render(page: &Page) -> String {
             ));
         }
         h.push_str("</div>\n");
+    }
+    if let Some(text) = &page.text {
+        h.push_str(&format!("<h2>Output</h2><pre>{}</pre>\n", escape(text)));
     }
     if let Some(raw) = &page.raw {
         h.push_str(&format!(
@@ -300,6 +305,7 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
             .map(|(k, v)| (k.clone(), *v))
             .collect(),
         pictures: pictures.to_vec(),
+        text: None,
         raw: serde_json::to_string_pretty(report).ok(),
     })
 }
@@ -323,6 +329,7 @@ mod tests {
                 caption: "depth".into(),
                 png: vec![0x89, b'P', b'N', b'G'],
             }],
+            text: Some("fx 4000.1 <px>".into()),
             raw: Some("{\"x\": 1}".into()),
         };
         let html = render(&page);
@@ -331,6 +338,7 @@ mod tests {
         assert!(html.contains("src=\"data:image/png;base64,iVBORw==\""));
         assert!(html.contains("812 ms"));
         assert!(html.contains("{&quot;x&quot;: 1}"));
+        assert!(html.contains("<pre>fx 4000.1 &lt;px&gt;</pre>"));
         assert!(!html.contains("http"), "no network references");
         let quiet = render(&Page {
             warnings: vec![],

@@ -181,6 +181,7 @@ pub fn detect_circle_grid(
         }
     } else {
         DetectError::NotFound {
+            target: "circle grid",
             candidates: points.len(),
         }
     })

@@ -47,15 +47,17 @@ pub enum DetectError {
         /// Inner corners along y.
         rows: usize,
     },
-    /// No corner grid was found at all.
-    #[error("no checkerboard found ({candidates} corner candidates)")]
+    /// No grid of the target was found at all.
+    #[error("no {target} found ({candidates} {} candidates)", if *target == "checkerboard" { "corner" } else { "circle" })]
     NotFound {
-        /// Saddle candidates seen.
+        /// The target looked for: "checkerboard" or "circle grid".
+        target: &'static str,
+        /// Saddle (or blob) candidates seen.
         candidates: usize,
     },
     /// A grid was found but its size is not the board's (partly hidden,
     /// cut by the image edge, or the wrong board size given).
-    #[error("expected {expected_cols}x{expected_rows} inner corners, found a {found_cols}x{found_rows} grid")]
+    #[error("expected {expected_cols}x{expected_rows} inner corners (or circles), found a {found_cols}x{found_rows} grid")]
     WrongCount {
         /// Inner corners expected along x.
         expected_cols: usize,
@@ -225,6 +227,7 @@ pub fn detect_checkerboard(
             }
         } else {
             DetectError::NotFound {
+                target: "checkerboard",
                 candidates: points.len(),
             }
         });

@@ -22,11 +22,14 @@ use slscan::calibration::head::{
     calibrate_camera_stage, calibrate_head, BoardCapture, CameraStage, HeadOptions, ProjectorSpec,
 };
 use slscan::calibration::{write_rig, RigCalibration};
+use slscan::io::outputs::OutputSet;
+use slscan::io::report_html::{render, Page, Table};
 use slscan::io::write_atomically;
 
 use super::calibrate_sim_options::SimOptions;
 use super::calibration_print::{print_camera_stage, print_head};
 use super::parse::parse_size;
+use super::transcript::{say, take, with_spinner};
 
 /// Options of `slscan calibrate`.
 #[derive(clap::Args)]
@@ -90,6 +93,59 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating {}", parent.display()))?;
     }
+    // An earlier run's file must not pass for this run's if it fails.
+    let outputs = OutputSet::new([args.out.clone(), page_path(&args.out)]);
+    outputs.clear()?;
+    let result = calibrate(&args).and_then(|()| write_page(&args));
+    if result.is_err() {
+        outputs.discard();
+    }
+    result
+}
+
+/// The report page: the calibration file's with `.html`.
+fn page_path(out: &Path) -> PathBuf {
+    out.with_extension("html")
+}
+
+/// `OUT.html`: what the calibration printed, views it skipped as warnings.
+fn write_page(args: &Args) -> anyhow::Result<()> {
+    let lines = take();
+    let warnings = lines
+        .iter()
+        .filter(|l| l.contains("skipped:"))
+        .map(|l| {
+            format!(
+                "view {}",
+                l.split_whitespace().collect::<Vec<_>>().join(" ")
+            )
+        })
+        .collect();
+    let source = match &args.images {
+        Some(dir) => dir.display().to_string(),
+        None => "digital-twin renders".into(),
+    };
+    let html = render(&Page {
+        title: format!("slscan calibrate: {source}"),
+        warnings,
+        tables: vec![Table {
+            heading: "Calibration".into(),
+            rows: vec![
+                ("board views".into(), source),
+                ("calibration file".into(), args.out.display().to_string()),
+            ],
+        }],
+        timings_ms: vec![],
+        pictures: vec![],
+        text: Some(lines.join("\n")),
+        raw: std::fs::read_to_string(&args.out).ok(),
+    });
+    let path = page_path(&args.out);
+    write_atomically(&path, |w| w.write_all(html.as_bytes()))
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+fn calibrate(args: &Args) -> anyhow::Result<()> {
     let mut options = HeadOptions::default();
     options.camera = CameraCalibrationOptions {
         fix_k3: !args.with_k3,
@@ -97,13 +153,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     options.projector.fix_k3 = !args.with_k3;
     if args.sim {
-        run_sim(&args, &options)
+        run_sim(args, &options)
     } else {
         let dir = args
             .images
             .as_deref()
             .context("--images DIR or --sim is required")?;
-        run_images(&args, dir, &options)
+        run_images(args, dir, &options)
     }
 }
 
@@ -191,18 +247,22 @@ fn run_images(args: &Args, dir: &Path, options: &HeadOptions) -> anyhow::Result<
                 height_px,
                 period_px: args.period_px,
             };
-            let cal = calibrate_head(&args.head, &board, &captures, &spec, options)?;
+            let cal = with_spinner("calibrating the head", || {
+                calibrate_head(&args.head, &board, &captures, &spec, options)
+            })?;
             print_head(&cal);
             write_rig(&args.out, &RigCalibration::single(cal.head))
                 .with_context(|| format!("writing {}", args.out.display()))?;
         }
         None => {
-            let stage = calibrate_camera_stage(&board, &captures, options)?;
+            let stage = with_spinner("calibrating the camera", || {
+                calibrate_camera_stage(&board, &captures, options)
+            })?;
             print_camera_stage(&stage);
             write_camera_file(&args.out, &stage)?;
         }
     }
-    println!("wrote {}", args.out.display());
+    say!("wrote {}", args.out.display());
     Ok(())
 }
 

@@ -14,6 +14,7 @@ use slscan::sim::calibration::twin_scene::{calibrate_scene, scene_heads};
 use slscan::sim::twin::{Detail, SensorModel};
 
 use super::calibration_print::{print_head, print_truth_comparison};
+use super::transcript::{say, with_spinner};
 
 /// What to calibrate and where to write it.
 pub struct SceneArgs<'a> {
@@ -44,26 +45,27 @@ pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> any
     for head in &mut heads.heads {
         head.pixel_samples = args.pixel_samples;
     }
-    println!(
+    say!(
         "scene {scene}: {} board views per head, {} shared views for head-to-head, camera {}x{}",
         heads.heads[0].world_from_board.len(),
         heads.shared.len(),
         detail.camera.0,
         detail.camera.1
     );
-    let cal = calibrate_scene(&heads, sensor, 1, options)
+    let what = format!("rendering and calibrating both heads of scene {scene}");
+    let cal = with_spinner(&what, || calibrate_scene(&heads, sensor, 1, options))
         .with_context(|| format!("calibrating the heads of scene {scene}"))?;
     for (h, head) in cal.heads.iter().enumerate() {
-        println!("== head {}", head.head.name);
+        say!("== head {}", head.head.name);
         print_head(head);
         print_truth_comparison(&heads.heads[h].truth, head);
     }
-    println!(
+    say!(
         "head-to-head from {} shared views: rms {:.4} px",
         heads.shared.len(),
         cal.head_to_head.rms_px
     );
-    println!("recovered vs true (digital twin):");
+    say!("recovered vs true (digital twin):");
     for (h, head) in cal.rig.heads.iter().enumerate() {
         let truth = &heads.truth.heads[h];
         print_device_vs_truth(&head.name, "camera", &head.camera, &truth.camera);
@@ -80,7 +82,7 @@ pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> any
         print_pose_error("head-to-head (camera A -> camera B)", e);
     }
     write_rig(args.out, &cal.rig).with_context(|| format!("writing {}", args.out.display()))?;
-    println!(
+    say!(
         "wrote {} in {:.1} s",
         args.out.display(),
         start.elapsed().as_secs_f64()
@@ -90,15 +92,16 @@ pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> any
 
 fn print_device_vs_truth(head: &str, what: &str, got: &PinholeModel, truth: &PinholeModel) {
     let (g, t) = (got.intrinsics, truth.intrinsics);
-    println!(
+    say!(
         "  {head} {what:<9} fx {:.2} (true {:.2})  fy {:.2} ({:.2})  cx {:.2} ({:.2})  cy {:.2} ({:.2})",
         g.fx, t.fx, g.fy, t.fy, g.cx, t.cx, g.cy, t.cy
     );
 }
 
 fn print_pose_error(what: &str, e: &PoseError) {
-    println!(
+    say!(
         "  {what}: rotation error {:.4} deg, translation error {:.3} mm",
-        e.rotation_deg, e.translation_mm
+        e.rotation_deg,
+        e.translation_mm
     );
 }

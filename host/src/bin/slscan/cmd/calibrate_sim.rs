@@ -21,6 +21,7 @@ use slscan::synth::targets::BitDepth;
 
 use super::calibrate_sim_options::SimOptions;
 use super::calibration_print::{print_head, print_truth_comparison};
+use super::transcript::{say, with_spinner};
 
 /// Renders with `args`, calibrates head `head` (and with `--two-heads` or
 /// `--scene` the second, `args.head_b`) and writes the rig file `out`.
@@ -69,8 +70,11 @@ pub fn run(args: &SimOptions, head: &str, out: &Path, options: &HeadOptions) -> 
     let mut calibrated = Vec::new();
     let mut first_views = Vec::new();
     for (name, sim) in &heads {
-        let captures = sim
-            .render(&sensor, 1, true)
+        let what = format!(
+            "rendering head {name}'s {} board views with the digital twin",
+            args.views
+        );
+        let captures = with_spinner(&what, || sim.render(&sensor, 1, true))
             .with_context(|| format!("rendering head {name} with the digital twin"))?;
         if let Some(dir) = &args.save_images {
             let dir = if args.two_heads {
@@ -80,9 +84,11 @@ pub fn run(args: &SimOptions, head: &str, out: &Path, options: &HeadOptions) -> 
             };
             save_captures(&dir, &captures, bit_depth)?;
         }
-        let cal = calibrate_head(name, &target, &captures, &sim.projector_spec(), options)
-            .with_context(|| format!("calibrating simulated head {name}"))?;
-        println!("== head {name}");
+        let cal = with_spinner(&format!("calibrating head {name}"), || {
+            calibrate_head(name, &target, &captures, &sim.projector_spec(), options)
+        })
+        .with_context(|| format!("calibrating simulated head {name}"))?;
+        say!("== head {name}");
         print_head(&cal);
         print_truth_comparison(&sim.truth, &cal);
         first_views.extend(captures.into_iter().next().map(|c| c.image));
@@ -101,7 +107,7 @@ pub fn run(args: &SimOptions, head: &str, out: &Path, options: &HeadOptions) -> 
             .context("head-to-head extrinsics")?;
             let angle = rotation_angle_between(&pair.a_to_b.rotation, &true_head_to_head.rotation);
             let dt = (pair.a_to_b.translation_m - true_head_to_head.translation_m).norm();
-            println!(
+            say!(
                 "head-to-head from one shared view: rms {:.4} px; recovered - true: rotation {:.4} deg, translation {:.3} mm",
                 pair.rms_px,
                 angle.to_degrees(),
@@ -116,7 +122,7 @@ pub fn run(args: &SimOptions, head: &str, out: &Path, options: &HeadOptions) -> 
         head_to_head,
     };
     write_rig(out, &rig).with_context(|| format!("writing {}", out.display()))?;
-    println!("wrote {}", out.display());
+    say!("wrote {}", out.display());
     Ok(())
 }
 
@@ -149,6 +155,6 @@ fn save_captures(dir: &Path, captures: &[BoardCapture], depth: BitDepth) -> anyh
             }
         }
     }
-    println!("wrote {} views to {}", captures.len(), dir.display());
+    say!("wrote {} views to {}", captures.len(), dir.display());
     Ok(())
 }

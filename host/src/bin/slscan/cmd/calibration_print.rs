@@ -1,13 +1,14 @@
 //! What `slscan calibrate` prints: devices, per-view errors, and (in
 //! simulation) recovered against true values.
 
+use super::transcript::say;
 use slscan::calibration::head::{CameraStage, HeadCalibration};
 use slscan::calibration::rodrigues::rotation_angle_between;
 use slscan::calibration::PinholeModel;
 
 pub(super) fn print_device(what: &str, d: &PinholeModel) {
     let (k, dist) = (d.intrinsics, d.distortion);
-    println!(
+    say!(
         "{what} {}x{}: fx {:.3} fy {:.3} cx {:.3} cy {:.3} | k1 {:.5} k2 {:.5} p1 {:.6} p2 {:.6} k3 {:.5}",
         d.width_px, d.height_px, k.fx, k.fy, k.cx, k.cy, dist.k1, dist.k2, dist.p1, dist.p2, dist.k3
     );
@@ -15,21 +16,21 @@ pub(super) fn print_device(what: &str, d: &PinholeModel) {
 
 pub(super) fn print_camera_stage(stage: &CameraStage) {
     print_device("camera", &stage.camera);
-    println!("view            camera_rms_px");
+    say!("view            camera_rms_px");
     for (name, rms) in stage.names.iter().zip(&stage.calibration.view_rms_px) {
-        println!("{name:<15} {rms:.4}");
+        say!("{name:<15} {rms:.4}");
     }
     for (name, err) in &stage.skipped {
-        println!("{name:<15} skipped: {err}");
+        say!("{name:<15} skipped: {err}");
     }
-    println!("camera reprojection RMS {:.4} px", stage.calibration.rms_px);
+    say!("camera reprojection RMS {:.4} px", stage.calibration.rms_px);
 }
 
 pub(super) fn print_head(cal: &HeadCalibration) {
     print_device("camera", &cal.head.camera);
     print_device("projector", &cal.head.projector);
     let t = cal.head.projector.pose.translation_m * 1e3;
-    println!(
+    say!(
         "camera->projector: rotation {:.3} deg, translation ({:.2}, {:.2}, {:.2}) mm",
         rotation_angle_between(
             &nalgebra::Matrix3::identity(),
@@ -40,9 +41,9 @@ pub(super) fn print_head(cal: &HeadCalibration) {
         t.y,
         t.z
     );
-    println!("view            camera_rms_px  projector_rms_px");
+    say!("view            camera_rms_px  projector_rms_px");
     for e in &cal.head.view_errors {
-        println!(
+        say!(
             "{:<15} {:<14.4} {:.4}",
             e.view,
             e.camera_rms_px,
@@ -50,9 +51,9 @@ pub(super) fn print_head(cal: &HeadCalibration) {
         );
     }
     for (name, err) in &cal.camera.skipped {
-        println!("{name:<15} skipped: {err}");
+        say!("{name:<15} skipped: {err}");
     }
-    println!(
+    say!(
         "reprojection RMS: camera {:.4} px, projector {:.4} px (joint {:.4} px)",
         cal.head.camera_rms_px().unwrap_or(f64::NAN),
         cal.head.projector_rms_px().unwrap_or(f64::NAN),
@@ -67,10 +68,10 @@ pub(super) fn print_truth_comparison(truth: &slscan::calibration::Head, cal: &He
         ("camera", &cal.head.camera, &truth.camera),
         ("projector", &cal.head.projector, &truth.projector),
     ];
-    println!("recovered - true (digital twin):");
+    say!("recovered - true (digital twin):");
     for (what, got, truth) in pairs {
         let (g, t) = (got.intrinsics, truth.intrinsics);
-        println!(
+        say!(
             "  {what}: dfx {:+.3} dfy {:+.3} dcx {:+.3} dcy {:+.3} px | dk1 {:+.5} dk2 {:+.5} dp1 {:+.6} dp2 {:+.6}",
             g.fx - t.fx,
             g.fy - t.fy,
@@ -87,7 +88,7 @@ pub(super) fn print_truth_comparison(truth: &slscan::calibration::Head, cal: &He
         &truth.projector.pose.rotation,
     );
     let dt = (cal.head.projector.pose.translation_m - truth.projector.pose.translation_m).norm();
-    println!(
+    say!(
         "  camera->projector: rotation {:.4} deg, translation {:.3} mm",
         angle.to_degrees(),
         dt * 1e3

@@ -31,6 +31,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !(args.merge_radius_mm.is_finite() && args.merge_radius_mm > 0.0) {
         anyhow::bail!("--merge-radius-mm {} is not positive", args.merge_radius_mm);
     }
+    // An earlier merged cloud must not pass for this run's when it fails.
+    slscan::io::outputs::OutputSet::new([args.out.clone()]).clear()?;
     let registered = register_clouds(&args.clouds)?;
     print_registration(&registered);
     let params = MergeParams {

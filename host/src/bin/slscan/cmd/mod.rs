@@ -14,6 +14,7 @@ pub mod patterns;
 pub mod reconstruct;
 pub mod register;
 pub mod scan;
+pub mod transcript;
 
 /// The error of a `--sim` option in a build without the simulator.
 #[cfg(not(feature = "sim"))]

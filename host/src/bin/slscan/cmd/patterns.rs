@@ -119,6 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Kind::Tfc => {
             let pats = tfc_patterns(&TfcSpec::seed001(), args.width, args.height);
             if matches!(args.bits, Bits::Grey) {
+                clear_earlier_patterns(&args.out)?;
                 for (i, p) in pats.iter().enumerate() {
                     let rgb = Raster {
                         width: p.width,
@@ -141,6 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             tfc_channel_frames(&pats)
         }
     };
+    clear_earlier_patterns(&args.out)?;
     let method = match args.bits {
         Bits::Grey => None,
         Bits::Diffusion => Some(Binarize::ErrorDiffusion),
@@ -180,5 +182,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.out.display()
         );
     }
+    Ok(())
+}
+
+/// File-name prefixes of the pattern files this command writes.
+const PATTERN_PREFIXES: [&str; 3] = ["pattern_", "bitplanes_", "tfc_rgb_"];
+
+/// Removes an earlier run's pattern files from `dir` (`pattern_NNN.png`,
+/// `bitplanes_NNN.png`, `tfc_rgb_NNN.png`; nothing else), so a smaller set
+/// does not leave the old set's tail for a DMD tool to load with it.
+fn clear_earlier_patterns(dir: &std::path::Path) -> anyhow::Result<()> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(());
+    };
+    let ours = |name: &str| {
+        PATTERN_PREFIXES.iter().any(|prefix| {
+            name.strip_prefix(prefix)
+                .and_then(|rest| rest.strip_suffix(".png"))
+                .is_some_and(|n| n.len() == 3 && n.bytes().all(|b| b.is_ascii_digit()))
+        })
+    };
+    let paths = entries
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_str().is_some_and(ours))
+        .map(|e| e.path());
+    slscan::io::outputs::OutputSet::new(paths).clear()?;
     Ok(())
 }

@@ -243,6 +243,7 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
         }],
         timings_ms: timings.clone(),
         pictures: page_pictures,
+        text: None,
         raw: None,
     });
     save_bytes(&page_path(&args.out), page.as_bytes())?;

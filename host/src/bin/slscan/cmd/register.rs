@@ -225,6 +225,10 @@ pub fn print_registration(r: &Registered) {
 
 /// Runs `slscan register`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // An earlier transform must not pass for this run's when it fails.
+    if let Some(path) = &args.out {
+        slscan::io::outputs::OutputSet::new([path.clone()]).clear()?;
+    }
     let registered = register_clouds(&args.clouds)?;
     print_registration(&registered);
     if let Some(path) = &args.out {
