@@ -441,6 +441,37 @@ fn slscan_scan_with_a_missing_frame_fails_and_writes_no_scan() {
     let _ = std::fs::remove_dir_all(&folders.root);
 }
 
+#[test]
+fn slscan_scan_at_every_fault_leaves_no_output_old_or_new() {
+    let faults = [
+        (
+            "vanish",
+            Fault::BoardVanishes {
+                at_tick: 170_000 + 17_000_000,
+            },
+            "sync board",
+        ),
+        (
+            "extra",
+            Fault::Extra { head: 1, index: 11 },
+            "camera took 13 frames",
+        ),
+        ("size", Fault::WrongSize { head: 0, index: 3 }, "(100, 75)"),
+        ("corrupt", Fault::Corrupt { head: 1, index: 4 }, "frame"),
+    ];
+    for (name, fault, want) in faults {
+        let (out, folders) = with_vendor_tools(&format!("cli-{name}"), fault, |port, folders| {
+            seed_earlier_run(&folders.out);
+            slscan_scan(port, folders, &["--frame-timeout-s", "30"])
+        });
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{name}: {stderr}");
+        assert!(stderr.contains(want), "{name}: {stderr}");
+        assert_no_outputs(&folders.out);
+        let _ = std::fs::remove_dir_all(&folders.root);
+    }
+}
+
 /// Every file a scan writes, each as an earlier run's.
 fn seed_earlier_run(out: &Path) {
     std::fs::create_dir_all(out).unwrap();
