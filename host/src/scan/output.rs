@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use super::spheres::{centre_distance_error_m, SphereFigures};
-use super::{Mode, ScanResult, HEAD_NAMES};
+use super::{Mode, Progress, ScanResult, HEAD_NAMES};
 use crate::io::cloud_render::{render_cloud, splat_radius_for, CloudView};
 use crate::io::images::{encode_rgb_png, save_bytes, ImageError};
 use crate::io::outputs::{OutputSet, OutputSetError};
@@ -246,19 +246,32 @@ pub const CLOUD_VIEWS: [(&str, f64, f64); 2] = [("front", 0.0, 0.0), ("oblique",
 /// fused cloud, Lambert-shaded), `report.json`, `report.html` (every figure
 /// and picture on one self-contained page), then `scan.ply`. When any write
 /// fails, every file of this run is removed again.
-pub fn write_scan(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError> {
+pub fn write_scan(
+    dir: &Path,
+    scan: &ScanResult,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<ScanReport, OutputError> {
     std::fs::create_dir_all(dir).map_err(|source| OutputError::Dir {
         path: dir.to_owned(),
         source,
     })?;
-    let result = write_files(dir, scan);
+    progress(Progress::Stage {
+        name: "write outputs",
+        total: scan.heads.len() as u64 + 1,
+    });
+    let result = write_files(dir, scan, progress);
+    progress(Progress::Done);
     if result.is_err() {
         output_set(dir).discard();
     }
     result
 }
 
-fn write_files(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError> {
+fn write_files(
+    dir: &Path,
+    scan: &ScanResult,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<ScanReport, OutputError> {
     let mut page = Vec::new();
     for h in &scan.heads {
         let tag = h.name.to_lowercase();
@@ -279,6 +292,7 @@ fn write_files(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError>
             });
         }
         write_ply(&dir.join(format!("head_{tag}.ply")), &h.cloud_in_a)?;
+        progress(Progress::Step);
     }
     if scan.fused.failure.is_none() {
         page.extend(write_cloud_pictures(
@@ -298,6 +312,7 @@ fn write_files(dir: &Path, scan: &ScanResult) -> Result<ScanReport, OutputError>
     if scan.fused.failure.is_none() {
         write_ply(&dir.join("scan.ply"), &scan.fused.cloud)?;
     }
+    progress(Progress::Step);
     Ok(report)
 }
 

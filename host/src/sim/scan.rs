@@ -113,7 +113,7 @@ pub fn scan_to_dir(
 ) -> Result<ScanReport, SimScanError> {
     output::remove_stale(dir).map_err(ScanError::from)?;
     let result = run_sim(config, progress)?;
-    Ok(output::write_scan(dir, &result).map_err(ScanError::from)?)
+    Ok(output::write_scan(dir, &result, progress).map_err(ScanError::from)?)
 }
 
 /// Runs a scan of a one- or two-head twin scene on the simulated rig (board

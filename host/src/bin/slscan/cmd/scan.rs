@@ -34,10 +34,10 @@ pub struct Args {
     #[arg(long)]
     out: PathBuf,
     /// Camera width, pixels (--sim; on hardware the calibration's).
-    #[arg(long, default_value_t = 640)]
+    #[arg(long, default_value_t = 640, value_parser = clap::value_parser!(u32).range(16..=16384))]
     width: u32,
     /// Camera height, pixels (--sim; on hardware the calibration's).
-    #[arg(long, default_value_t = 480)]
+    #[arg(long, default_value_t = 480, value_parser = clap::value_parser!(u32).range(16..=16384))]
     height: u32,
     /// Seed of device jitter and sensor noise (--sim).
     #[arg(long, default_value_t = 1)]
@@ -308,7 +308,7 @@ fn scan_hardware(
     let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
     let source = format!("rig file {}", calibration_path.display());
     let result = scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?;
-    Ok(scan::output::write_scan(&args.out, &result)?)
+    Ok(scan::output::write_scan(&args.out, &result, progress)?)
 }
 
 /// Sizes from the calibration (both heads' DMDs must match: one pattern
