@@ -61,8 +61,7 @@ pub const BUILT_IN: &[BuiltIn] = &[
     },
     BuiltIn {
         name: "spheres",
-        about:
-            "two calibration spheres, R 25.3967 / 25.3989 mm, centres 100.1166 mm apart (seed 001)",
+        about: "two calibration spheres, R 25.3967 / 25.3989 mm, centres 100.1166 mm apart",
         build: spheres,
     },
     BuiltIn {
@@ -72,23 +71,22 @@ pub const BUILT_IN: &[BuiltIn] = &[
     },
     BuiltIn {
         name: "large-part",
-        about:
-            "wavy panel wider than one head's view, two heads with overlapping fields (seed 000)",
+        about: "wavy panel wider than one head's view, two heads with overlapping fields",
         build: large_part,
     },
     BuiltIn {
         name: "metal-part",
-        about: "glossy machined part, 50:1 reflectivity range and saturating highlights (seed 003)",
+        about: "glossy machined part, 50:1 reflectivity range and saturating highlights",
         build: metal_part,
     },
     BuiltIn {
         name: "colour-object",
-        about: "multi-coloured sphere on a colour-patch board (seed 004)",
+        about: "multi-coloured sphere on a colour-patch board",
         build: colour_object,
     },
     BuiltIn {
         name: "fan",
-        about: "four-blade fan spinning at 10 rev/s in front of a wall (dynamic, seed 001)",
+        about: "four-blade fan spinning at 10 rev/s in front of a wall (dynamic)",
         build: fan,
     },
     BuiltIn {
