@@ -9,7 +9,7 @@ use hil_sim::twin::Turbidity;
 /// Options of `hil-sim dataset`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Which pairs: aliased (seed 000), multiplexed (seed 001), underwater (seed 002).
+    /// Which pairs: aliased (simultaneous dual-head), multiplexed (24-pattern colour long exposure), underwater.
     kind: DatasetKind,
     /// Number of samples.
     #[arg(long, default_value_t = 16)]
