@@ -4,13 +4,16 @@
 
 use nalgebra::{Isometry3, Vector3};
 
-use super::clouds::to_fusion;
+use super::clouds::{from_fusion, to_fusion, transformed, with_head_attributes};
+use super::self_check::{self, SelfCheck};
 use super::{Mode, ScanConfig, ScanError};
+use crate::calibration::Pose;
 use crate::fusion::{
     self, merge_clouds_indexed, DuplicateRule, FuseParams, FusionError, IcpParams, IcpResult,
     MergeParams,
 };
 use crate::point_cloud::PointCloud;
+use crate::reconstruct::Reconstruction;
 
 /// The fused cloud (head A's frame) and the registration, if one ran.
 pub struct Fused {
@@ -22,6 +25,81 @@ pub struct Fused {
     pub b_kept: Vec<usize>,
     /// How well the registered clouds agree in shape (needs ICP).
     pub agreement: Option<fusion::ShapeAgreement>,
+}
+
+/// What fusing a scan's heads gave.
+pub struct HeadsFused {
+    /// The scan's cloud in head A's frame, with the heads' normals and
+    /// colours (one head: its cloud; failed fusion: empty).
+    pub cloud: PointCloud,
+    /// ICP of B onto A (`None` with one head, without shared surface, or
+    /// when fusion failed).
+    pub icp: Option<IcpResult>,
+    /// Each head's frame into head A's: the pose the scan used.
+    pub a_from_head: Vec<Isometry3<f64>>,
+    /// The calibration's checks that need no truth (with ICP).
+    pub self_check: Option<SelfCheck>,
+    /// Why the heads could not be fused.
+    pub failure: Option<String>,
+}
+
+/// Two heads: ICP of B onto A from the calibrated `head_to_head`, the
+/// calibration self-check, one cloud; when ICP fails, still a result (the
+/// heads by the calibrated pose) that says why. One head: its cloud.
+pub fn fuse_heads(
+    recons: &[Reconstruction],
+    head_to_head: Option<Pose>,
+    config: &ScanConfig,
+    warnings: &mut Vec<String>,
+) -> Result<HeadsFused, ScanError> {
+    let ([a, b], Some(a_to_b)) = (recons, head_to_head) else {
+        return Ok(HeadsFused {
+            cloud: recons.first().map(|r| r.cloud.clone()).unwrap_or_default(),
+            icp: None,
+            a_from_head: vec![Isometry3::identity()],
+            self_check: None,
+            failure: None,
+        });
+    };
+    let a_from_b_calibrated = a_to_b.to_isometry().inverse();
+    match fuse(&a.cloud, &b.cloud, &a_from_b_calibrated, config, warnings) {
+        Ok(fused) => {
+            let a_from_b_used = fused
+                .icp
+                .as_ref()
+                .map_or(a_from_b_calibrated, |icp| icp.transform);
+            let self_check = fused.icp.as_ref().map(|icp| {
+                let c = self_check::check(icp, fused.agreement.as_ref());
+                warnings.extend(self_check::warning(&c));
+                c
+            });
+            let cloud = with_head_attributes(
+                from_fusion(&fused.cloud),
+                &a.cloud,
+                &transformed(&b.cloud, &a_from_b_used),
+                &fused.b_kept,
+            );
+            Ok(HeadsFused {
+                cloud,
+                icp: fused.icp,
+                a_from_head: vec![Isometry3::identity(), a_from_b_used],
+                self_check,
+                failure: None,
+            })
+        }
+        Err(ScanError::Fusion(e)) => {
+            let why = self_check::fusion_failure(&e);
+            warnings.push(why.clone());
+            Ok(HeadsFused {
+                cloud: PointCloud::default(),
+                icp: None,
+                a_from_head: vec![Isometry3::identity(), a_from_b_calibrated],
+                self_check: None,
+                failure: Some(why),
+            })
+        }
+        Err(e) => Err(e),
+    }
 }
 
 /// Fuses `b` (head B's frame) into `a` (head A's), starting from the

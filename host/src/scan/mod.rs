@@ -36,8 +36,6 @@ pub mod truth_frame;
 
 use std::time::Instant;
 
-use nalgebra::Isometry3;
-
 use crate::board::ClientConfig;
 use crate::calibration::RigCalibration;
 use crate::fusion::{FusionError, IcpResult};
@@ -46,7 +44,7 @@ use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
 use crate::rig::{Board, Camera, Projector, RigError};
-use clouds::{from_fusion, transformed, with_head_attributes};
+use clouds::transformed;
 use metrics::PixelAccuracy;
 pub use truth::{CameraTruth, GroundTruth};
 
@@ -496,55 +494,13 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         name: "fuse",
         total: 1,
     });
-    let mut self_check = None;
-    let mut fusion_failure = None;
-    let (fused_cloud, icp, a_from_head) = match (&recons[..], calibration.head_to_head) {
-        ([a, b], Some(a_to_b)) => {
-            let a_from_b_calibrated = a_to_b.to_isometry().inverse();
-            match fuse::fuse(
-                &a.cloud,
-                &b.cloud,
-                &a_from_b_calibrated,
-                config,
-                &mut warnings,
-            ) {
-                Ok(fused) => {
-                    let a_from_b_used = fused
-                        .icp
-                        .as_ref()
-                        .map_or(a_from_b_calibrated, |icp| icp.transform);
-                    if let Some(icp) = &fused.icp {
-                        let c = self_check::check(icp, fused.agreement.as_ref());
-                        if let Some(w) = self_check::warning(&c) {
-                            warnings.push(w);
-                        }
-                        self_check = Some(c);
-                    }
-                    let cloud = with_head_attributes(
-                        from_fusion(&fused.cloud),
-                        &a.cloud,
-                        &transformed(&b.cloud, &a_from_b_used),
-                        &fused.b_kept,
-                    );
-                    (cloud, fused.icp, vec![Isometry3::identity(), a_from_b_used])
-                }
-                // Still a result: the per-head clouds (by the calibrated
-                // pose) and a report that says why there is no fused one.
-                Err(ScanError::Fusion(e)) => {
-                    let why = self_check::fusion_failure(&e);
-                    warnings.push(why.clone());
-                    fusion_failure = Some(why);
-                    (
-                        PointCloud::default(),
-                        None,
-                        vec![Isometry3::identity(), a_from_b_calibrated],
-                    )
-                }
-                Err(e) => return Err(e),
-            }
-        }
-        _ => (recons[0].cloud.clone(), None, vec![Isometry3::identity()]),
-    };
+    let fuse::HeadsFused {
+        cloud: fused_cloud,
+        icp,
+        a_from_head,
+        self_check,
+        failure: fusion_failure,
+    } = fuse::fuse_heads(&recons, calibration.head_to_head, config, &mut warnings)?;
     progress(Progress::Step);
     progress(Progress::Done);
     clock.lap("fuse");
