@@ -163,6 +163,77 @@ fn bad_captures_give_clear_errors_and_no_output() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+#[test]
+fn npy_frames_give_the_same_cloud_and_write_phase_writes_the_maps() {
+    let dir = tmp("npy");
+    let images = capture(&dir);
+    let rig = dir.join("rig.json");
+    // The same frames as float .npy arrays (the PNGs' decoded values).
+    let npy = dir.join("npy");
+    std::fs::create_dir_all(&npy).unwrap();
+    for path in slscan::io::images::list_images(&images).unwrap() {
+        let frame = slscan::io::images::load_gray(&path).unwrap();
+        let name = path.with_extension("npy");
+        slscan::io::npy::write_npy_f32(&npy.join(name.file_name().unwrap()), &frame.image).unwrap();
+    }
+    let png_run = reconstruct(&dir, &images, &rig);
+    assert!(
+        png_run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&png_run.stderr)
+    );
+    let from_png = std::fs::read(dir.join("out.ply")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_slscan"))
+        .args([
+            "reconstruct",
+            "--periods",
+            "9,10,11",
+            "--noise-sigma",
+            "0.003",
+            "--verbose",
+        ])
+        .arg("--images")
+        .arg(&npy)
+        .arg("--rig")
+        .arg(&rig)
+        .arg("--out")
+        .arg(dir.join("npy.ply"))
+        .arg("--write-phase")
+        .arg(dir.join("maps"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        std::fs::read(dir.join("npy.ply")).unwrap(),
+        from_png,
+        "same cloud"
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for stage in ["phase", "unwrap", "triangulate", "cloud", "load", "write"] {
+        assert!(
+            stdout.lines().any(|l| l.starts_with(stage)),
+            "{stage}: {stdout}"
+        );
+    }
+    let read = |f: &str| {
+        slscan::io::npy::decode_npy_2d(&std::fs::read(dir.join("maps").join(f)).unwrap()).unwrap()
+    };
+    let (phase, status) = (read("phase.npy"), read("status.npy"));
+    assert_eq!(phase.values.size(), (64, 48));
+    assert_eq!(status.dtype, slscan::io::npy::Dtype::U8);
+    assert_eq!(read("modulation.npy").values.size(), (64, 48));
+    // Valid pixels (code 0) have a phase; all others are NaN.
+    for (p, s) in phase.values.data.iter().zip(&status.values.data) {
+        assert_eq!(p.is_finite(), *s == 0.0, "phase {p} status {s}");
+    }
+    assert!(status.values.data.iter().filter(|s| **s == 0.0).count() > 1000);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// The files `reconstruct` writes with `--pictures`.
 fn reconstruct_outputs(dir: &Path) -> Vec<PathBuf> {
     let mut files = vec![dir.join("out.ply"), dir.join("out.html")];

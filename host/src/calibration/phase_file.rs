@@ -1,14 +1,12 @@
 //! Phase maps on disk as `.npy` (DESIGN: float arrays go to .npy): 2-D,
 //! C order, little-endian f32 or f64, NaN where there is no phase.
 //!
-//! A minimal reader of NumPy's format (versions 1-3) for the calibration
-//! CLI (no crate is needed for a 2-D float array); writing uses
-//! [`crate::io::npy`].
+//! Reading and writing go through [`crate::io::npy`].
 
 use std::path::{Path, PathBuf};
 
 use super::board::GrayImage;
-use crate::io::npy::encode_npy_f32_rows;
+use crate::io::npy::{decode_npy_2d, encode_npy_f32_rows, Dtype, NpyError};
 use crate::io::write_atomically;
 
 /// Errors of phase-map files.
@@ -29,7 +27,7 @@ pub enum PhaseFileError {
         path: PathBuf,
     },
     /// The array is not a 2-D little-endian float array in C order.
-    #[error("{path}: need a 2-D C-order '<f4' or '<f8' array, header is {header:?}")]
+    #[error("{path}: need a 2-D C-order '<f4' or '<f8' array, found {header:?}")]
     Unsupported {
         /// The file.
         path: PathBuf,
@@ -52,92 +50,45 @@ pub enum PhaseFileError {
     },
 }
 
-/// Value of `key` in the header dict, as the raw text after the colon.
-fn header_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
-    let at = header.find(&format!("'{key}'"))? + key.len() + 2;
-    let rest = header[at..].trim_start().strip_prefix(':')?.trim_start();
-    Some(rest)
-}
-
-/// Reads a phase map (radians, NaN = none) from an .npy file.
+/// Reads a phase map (radians, NaN = none) from an .npy file: a 2-D
+/// float array (`<f4` or `<f8`).
 pub fn read_phase_map(path: &Path) -> Result<GrayImage, PhaseFileError> {
     let bytes = std::fs::read(path).map_err(|source| PhaseFileError::Io {
         path: path.to_owned(),
         source,
     })?;
-    let not_npy = || PhaseFileError::NotNpy {
-        path: path.to_owned(),
-    };
-    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
-        return Err(not_npy());
-    }
-    let (header_len, start) = match bytes[6] {
-        1 => (usize::from(u16::from_le_bytes([bytes[8], bytes[9]])), 10),
-        2 | 3 if bytes.len() >= 12 => (
-            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
-            12,
-        ),
-        _ => return Err(not_npy()),
-    };
-    let header_bytes = bytes.get(start..start + header_len).ok_or_else(not_npy)?;
-    let header = String::from_utf8_lossy(header_bytes).into_owned();
-    let unsupported = || PhaseFileError::Unsupported {
-        path: path.to_owned(),
-        header: header.trim().to_owned(),
-    };
-    let descr = header_value(&header, "descr").ok_or_else(unsupported)?;
-    let size = if descr.starts_with("'<f4'") {
-        4
-    } else if descr.starts_with("'<f8'") {
-        8
-    } else {
-        return Err(unsupported());
-    };
-    let fortran = header_value(&header, "fortran_order").ok_or_else(unsupported)?;
-    if !fortran.starts_with("False") {
-        return Err(unsupported());
-    }
-    let shape = header_value(&header, "shape").ok_or_else(unsupported)?;
-    let inner = shape
-        .strip_prefix('(')
-        .and_then(|s| s.split(')').next())
-        .ok_or_else(unsupported)?;
-    let dims: Vec<usize> = inner
-        .split(',')
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-        .map(|s| s.parse::<usize>().map_err(|_| unsupported()))
-        .collect::<Result<_, _>>()?;
-    let [height, width] = dims[..] else {
-        return Err(unsupported());
-    };
-    let data = &bytes[start + header_len..];
-    let expected = height * width * size;
-    if data.len() < expected || width > u32::MAX as usize || height > u32::MAX as usize {
-        return Err(PhaseFileError::Truncated {
-            path: path.to_owned(),
+    let path = path.to_owned();
+    let array = decode_npy_2d(&bytes).map_err(|e| match e {
+        NpyError::NotNpy => PhaseFileError::NotNpy { path: path.clone() },
+        NpyError::Unsupported { header } => PhaseFileError::Unsupported {
+            path: path.clone(),
+            header,
+        },
+        NpyError::Truncated {
             height,
             width,
             expected,
-            got: data.len(),
-        });
-    }
-    let values: Vec<f32> = if size == 4 {
-        data[..expected]
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect()
-    } else {
-        data[..expected]
-            .chunks_exact(8)
-            .map(|c| {
-                let mut b = [0u8; 8];
-                b.copy_from_slice(c);
-                f64::from_le_bytes(b) as f32
-            })
-            .collect()
+            got,
+        } => PhaseFileError::Truncated {
+            path: path.clone(),
+            height,
+            width,
+            expected,
+            got,
+        },
+    })?;
+    let unsupported = || PhaseFileError::Unsupported {
+        path: path.clone(),
+        header: format!("{:?} array", array.dtype),
     };
-    GrayImage::from_raw(width as u32, height as u32, values).ok_or_else(unsupported)
+    if !matches!(array.dtype, Dtype::F32 | Dtype::F64) {
+        return Err(unsupported());
+    }
+    let v = array.values;
+    let (Ok(w), Ok(h)) = (u32::try_from(v.width), u32::try_from(v.height)) else {
+        return Err(unsupported());
+    };
+    GrayImage::from_raw(w, h, v.data).ok_or_else(unsupported)
 }
 
 /// Writes a phase map as a 2-D '<f4' .npy file (temp file, then rename).

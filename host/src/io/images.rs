@@ -1,4 +1,5 @@
-//! Reading fringe images (8- or 16-bit PNG/TIFF -> f32 in [0, 1]) and writing pictures.
+//! Reading fringe images (8- or 16-bit PNG/TIFF, or NumPy `.npy` arrays of
+//! u8, u16 or floats in [0, 1] -> f32 in [0, 1]) and writing pictures.
 //!
 //! A capture set is checked as a whole: all frames the same size and bit depth, none
 //! missing, none saturated beyond a tolerated fraction, none empty (no signal).
@@ -19,6 +20,22 @@ pub enum ImageError {
         path: PathBuf,
         /// The decoder's error.
         source: image::ImageError,
+    },
+    /// An `.npy` frame could not be decoded.
+    #[error("frame {path}: {source}")]
+    Npy {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: super::npy::NpyError,
+    },
+    /// A float frame holds NaN or infinite values.
+    #[error("frame {path}: {count} pixels are NaN or infinite")]
+    NonFinite {
+        /// The file.
+        path: PathBuf,
+        /// How many.
+        count: usize,
     },
     /// The pixel format is not 8/16-bit grey or RGB.
     #[error("image {path}: unsupported pixel format {format}")]
@@ -93,12 +110,52 @@ pub enum ImageError {
 pub struct Frame {
     /// Intensities in [0, 1] (RGB frames are reduced to luma).
     pub image: Raster<f32>,
-    /// 8 or 16.
+    /// 8 or 16 (32 for a float `.npy` frame).
     pub bit_depth: u8,
 }
 
-/// Loads one 8- or 16-bit grey (or RGB, reduced to luma) image as f32 in [0, 1].
+/// Whether `path` names a NumPy array (by its extension).
+fn is_npy(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
+}
+
+/// Loads a 2-D `.npy` frame: u8 / u16 scaled by their full scale, floats
+/// taken as given (frame units, [0, 1]) and refused when not finite.
+fn load_npy(path: &Path) -> Result<Frame, ImageError> {
+    use super::npy::{decode_npy_2d, Dtype};
+    let bytes = std::fs::read(path).map_err(|source| ImageError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    let array = decode_npy_2d(&bytes).map_err(|source| ImageError::Npy {
+        path: path.to_owned(),
+        source,
+    })?;
+    let (scale, bit_depth) = match array.dtype {
+        Dtype::U8 => (1.0 / 255.0, 8),
+        Dtype::U16 => (1.0 / 65535.0, 16),
+        Dtype::F32 | Dtype::F64 => (1.0, 32),
+    };
+    let mut image = array.values;
+    let count = image.data.iter().filter(|v| !v.is_finite()).count();
+    if count > 0 {
+        return Err(ImageError::NonFinite {
+            path: path.to_owned(),
+            count,
+        });
+    }
+    image.data.iter_mut().for_each(|v| *v *= scale);
+    Ok(Frame { image, bit_depth })
+}
+
+/// Loads one frame as f32 in [0, 1]: an 8- or 16-bit grey (or RGB, reduced
+/// to luma) image, or a 2-D `.npy` array.
 pub fn load_gray(path: &Path) -> Result<Frame, ImageError> {
+    if is_npy(path) {
+        return load_npy(path);
+    }
     let img = image::open(path).map_err(|source| ImageError::Decode {
         path: path.to_owned(),
         source,
@@ -248,7 +305,7 @@ pub fn load_set(
     Ok(out)
 }
 
-/// The PNG/TIFF files of a folder, sorted by name.
+/// The PNG/TIFF (and `.npy`) files of a folder, sorted by name.
 pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, ImageError> {
     let io = |source| ImageError::Io {
         path: dir.to_owned(),
@@ -258,9 +315,12 @@ pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, ImageError> {
         .map_err(io)?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
-            p.extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "tif" | "tiff"))
+            p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+                matches!(
+                    e.to_ascii_lowercase().as_str(),
+                    "png" | "tif" | "tiff" | "npy"
+                )
+            })
         })
         .collect();
     paths.sort();
@@ -393,6 +453,33 @@ mod tests {
         let err = load_set(&[dir.join("a.png"), dir.join("c.png")], &limits).unwrap_err();
         assert!(matches!(err, ImageError::SizeMismatch { .. }));
         assert_eq!(list_images(&dir).unwrap().len(), 3);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn npy_frames_load_scaled_and_bad_ones_are_named() {
+        let dir = tmp("npy");
+        let img = Raster::from_fn(16, 8, |x, y| (x + y) as f32 / 30.0 + 0.05);
+        crate::io::npy::write_npy_f32(&dir.join("f.npy"), &img).unwrap();
+        let f = load_gray(&dir.join("f.npy")).unwrap();
+        assert_eq!((f.bit_depth, f.image), (32, img.clone()));
+        let codes = Raster::from_fn(16, 8, |x, _| x as u8 * 10);
+        crate::io::npy::write_npy_u8(&dir.join("u.npy"), &codes).unwrap();
+        let u = load_gray(&dir.join("u.npy")).unwrap();
+        assert_eq!(u.bit_depth, 8);
+        assert!((u.image.data[15] - 150.0 / 255.0).abs() < 1e-6);
+        let mut nan = img;
+        nan.data[3] = f32::NAN;
+        crate::io::npy::write_npy_f32(&dir.join("nan.npy"), &nan).unwrap();
+        let err = load_gray(&dir.join("nan.npy")).unwrap_err();
+        assert!(
+            matches!(err, ImageError::NonFinite { count: 1, .. }),
+            "{err}"
+        );
+        std::fs::write(dir.join("bad.npy"), b"garbage").unwrap();
+        let err = load_gray(&dir.join("bad.npy")).unwrap_err();
+        assert!(err.to_string().contains("bad.npy") && err.to_string().contains("not a NumPy"));
+        assert_eq!(list_images(&dir).unwrap().len(), 4);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::Context;
 use slscan::calibration::read_rig;
 use slscan::io::images::{list_images, load_set, save_bytes, ExposureLimits, ImageError};
-use slscan::io::npy::write_npy_f32;
+use slscan::io::npy::{write_npy_f32, write_npy_u8};
 use slscan::io::outputs::OutputSet;
 use slscan::io::ply::write_ply;
 use slscan::io::report_html::{render, Page, PagePicture, Table};
@@ -21,7 +21,8 @@ use slscan::unwrap::PixelStatus;
 /// Options of `slscan reconstruct`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Folder of fringe images (PNG/TIFF, 8- or 16-bit), sorted by name.
+    /// Folder of fringe images (PNG/TIFF, 8- or 16-bit, or 2-D .npy arrays of
+    /// u8, u16 or floats in [0, 1]), sorted by name.
     #[arg(long)]
     images: PathBuf,
     /// Rig calibration file (JSON).
@@ -61,7 +62,20 @@ pub struct Args {
     /// fringe modulation; PNG with scales and legends) and depth.npy.
     #[arg(long)]
     pictures: Option<PathBuf>,
+    /// Folder for the decoded maps as data: phase.npy (absolute phase of the
+    /// finest column period, radians, NaN where not valid), modulation.npy
+    /// (frame units) and status.npy (uint8: 0 valid, 1 masked, 2 unreliable,
+    /// 3 unreached), one value per camera pixel.
+    #[arg(long, value_name = "DIR")]
+    write_phase: Option<PathBuf>,
+    /// Print each stage's time (phase, unwrapping, triangulation, cloud,
+    /// loading and writing) in a table.
+    #[arg(long, short)]
+    verbose: bool,
 }
+
+/// The maps `--write-phase` writes.
+const PHASE_FILES: [&str; 3] = ["phase.npy", "modulation.npy", "status.npy"];
 
 /// Runs `slscan reconstruct`: checks the arguments, clears this command's
 /// earlier outputs, reconstructs, then writes the pictures, `depth.npy`, the
@@ -91,6 +105,9 @@ fn output_set(args: &Args) -> OutputSet {
                 .chain(["depth.npy".to_string()]),
         ));
     }
+    if let Some(dir) = &args.write_phase {
+        set = set.with(OutputSet::in_dir(dir, PHASE_FILES));
+    }
     set
 }
 
@@ -118,12 +135,17 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
         "--out {} is a folder; give the PLY file to write",
         args.out.display()
     );
-    if let Some(dir) = &args.pictures {
-        anyhow::ensure!(
-            !dir.exists() || dir.is_dir(),
-            "--pictures {} exists and is not a folder",
-            dir.display()
-        );
+    for (flag, dir) in [
+        ("--pictures", &args.pictures),
+        ("--write-phase", &args.write_phase),
+    ] {
+        if let Some(dir) = dir {
+            anyhow::ensure!(
+                !dir.exists() || dir.is_dir(),
+                "{flag} {} exists and is not a folder",
+                dir.display()
+            );
+        }
     }
     Ok(())
 }
@@ -169,8 +191,24 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
     let clock = Instant::now();
     let rec = Reconstructor::from_head(head, config)?;
     let (u, v) = refs.split_at(per_direction);
-    let out = rec.reconstruct(u, args.both.then_some(v))?;
-    lap(&mut timings, "reconstruct", clock);
+    // --verbose, columns only: the staged pipeline (same result, timed per
+    // stage); otherwise the fused single pass.
+    let out = if args.verbose && !args.both {
+        let (out, t) = rec.reconstruct_staged(u)?;
+        for (stage, s) in [
+            ("phase", t.phase_s),
+            ("unwrap", t.unwrap_s),
+            ("triangulate", t.triangulate_s),
+            ("cloud", t.cloud_s),
+        ] {
+            timings.push((stage.to_string(), s * 1e3));
+        }
+        out
+    } else {
+        let out = rec.reconstruct(u, args.both.then_some(v))?;
+        lap(&mut timings, "reconstruct", clock);
+        out
+    };
     anyhow::ensure!(
         !out.cloud.is_empty(),
         "no valid points: {} masked (modulation < {}), {} unreliable of {} pixels",
@@ -203,7 +241,10 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
             png: p.png,
         });
     }
-    lap(&mut timings, "pictures", clock);
+    if let Some(dir) = &args.write_phase {
+        write_maps(dir, &out)?;
+    }
+    lap(&mut timings, "pictures and maps", clock);
     let summary = format!(
         "{} points -> {} ({} valid, {} masked, {} unreliable pixels)",
         out.cloud.len(),
@@ -251,7 +292,30 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
     write_ply(&args.out, &out.cloud)?;
     lap(&mut timings, "write", clock);
     println!("{summary}");
+    if args.verbose {
+        println!("stage                 ms");
+        for (stage, ms) in &timings {
+            println!("{stage:<20} {ms:>5.0}");
+        }
+    }
     Ok(())
+}
+
+/// `--write-phase`: the absolute phase, modulation and status maps as `.npy`.
+fn write_maps(dir: &Path, out: &slscan::reconstruct::Reconstruction) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let status = out.status();
+    let codes = Raster {
+        width: status.width,
+        height: status.height,
+        data: status.data.iter().map(|s| *s as u8).collect(),
+    };
+    let [phase, modulation, status] = PHASE_FILES.map(|f| dir.join(f));
+    write_npy_f32(&phase, &out.phase_u())
+        .with_context(|| format!("writing {}", phase.display()))?;
+    write_npy_f32(&modulation, &out.modulation())
+        .with_context(|| format!("writing {}", modulation.display()))?;
+    write_npy_u8(&status, &codes).with_context(|| format!("writing {}", status.display()))
 }
 
 /// Logs a stage's time and keeps it for the page.
