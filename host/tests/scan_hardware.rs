@@ -385,6 +385,10 @@ fn slscan_scan_on_a_port_writes_clouds_and_a_report_without_truth() {
         stderr.contains("PLACEHOLDER: no DMD driver uploads patterns"),
         "{stderr}"
     );
+    // A redirected log: no colour codes, and the warning once per head.
+    assert!(!stderr.contains('\u{1b}'), "{stderr}");
+    let placeholder = stderr.matches("PLACEHOLDER: no DMD driver").count();
+    assert_eq!(placeholder, 2, "once per head: {stderr}");
     for file in [
         "scan.ply",
         "head_a.ply",

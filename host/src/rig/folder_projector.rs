@@ -112,8 +112,8 @@ impl FolderProjector {
             patterns.len(),
             dir.display()
         );
+        // Once, in the log (a library does not print).
         tracing::warn!("{warning}");
-        eprintln!("slscan: WARNING: {warning}");
         Ok(())
     }
 
