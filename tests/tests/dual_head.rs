@@ -86,7 +86,8 @@ fn check_fused_scan(mode: Mode, name: &str) -> ScanReport {
         "head_a.ply",
         "head_b.ply",
         "report.json",
-        "error_a.png",
+        "error_vs_truth_a.png",
+        "report.html",
         "cloud_front.png",
         "cloud_oblique.png",
     ] {

@@ -84,7 +84,7 @@ fn every_single_head_scene_scans() {
     ] {
         let mut config = SimScanConfig::new(scene);
         config.scan.camera_px = (160, 120);
-        let (report, dir) = scan(&config, scene);
+        let (report, dir) = scan(&config, &format!("every-{scene}"));
         assert_eq!(report.heads.len(), 1, "{scene}");
         assert!(dir.join("scan.ply").exists(), "{scene}");
         let h = &report.heads[0];
