@@ -179,6 +179,10 @@ pub struct SelfCheckReport {
     pub shape_disagreement_um: Option<f64>,
     /// What noise alone gives for that figure, micrometres.
     pub shape_noise_um: Option<f64>,
+    /// ICP's overlap residual, micrometres.
+    pub overlap_rmse_um: f64,
+    /// What the heads' predicted per-point noise gives for it, micrometres.
+    pub predicted_overlap_um: f64,
 }
 
 /// Size of a rigid fit.

@@ -279,12 +279,14 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
         rows.push((
             "calibration self-check (no truth needed)".into(),
             format!(
-                "{}: pose corrected by {:.3} deg / {:.2} mm; shape disagreement {} (noise alone {})",
+                "{}: pose corrected by {:.3} deg / {:.2} mm; shape disagreement {} (noise alone {}); overlap residual {:.0} um (noise predicts {:.0} um)",
                 c.verdict,
                 c.pose_correction_deg,
                 c.pose_correction_mm,
                 fig(c.shape_disagreement_um, 0, "um"),
-                fig(c.shape_noise_um, 0, "um")
+                fig(c.shape_noise_um, 0, "um"),
+                c.overlap_rmse_um,
+                c.predicted_overlap_um
             ),
         ));
     }

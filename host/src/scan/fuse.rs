@@ -68,8 +68,9 @@ pub fn fuse_heads(
                 .icp
                 .as_ref()
                 .map_or(a_from_b_calibrated, |icp| icp.transform);
+            let predicted = [a, b].map(super::measure::predicted_rms_m);
             let self_check = fused.icp.as_ref().map(|icp| {
-                let c = self_check::check(icp, fused.agreement.as_ref());
+                let c = self_check::check(icp, fused.agreement.as_ref(), predicted);
                 warnings.extend(self_check::warning(&c));
                 c
             });

@@ -209,6 +209,8 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                 pose_correction_mm: c.pose_translation_m * 1e3,
                 shape_disagreement_um: c.shape_rms_m.map(|s| s * um),
                 shape_noise_um: c.shape_noise_m.map(|s| s * um),
+                overlap_rmse_um: c.overlap_rmse_m * um,
+                predicted_overlap_um: c.predicted_overlap_m * um,
             }),
             failure: scan.fused.failure.clone(),
         },

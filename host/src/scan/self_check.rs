@@ -21,6 +21,10 @@ pub const POSE_TRANSLATION_LIMIT_M: f64 = 2e-3;
 /// metres: 3x what a correct calibration leaves on the twin (8.7 um on
 /// large-part, from normal estimation and sampling).
 pub const SHAPE_LIMIT_M: f64 = 30e-6;
+/// ICP's overlap residual over what the heads' predicted noise gives
+/// (`hypot` of their RMS sigmas), past which the heads disagree beyond
+/// their noise (a correct calibration gives 0.85 on large-part).
+pub const OVERLAP_RATIO_LIMIT: f64 = 1.5;
 
 /// What the checks found, for the report.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,6 +38,10 @@ pub struct SelfCheck {
     pub shape_rms_m: Option<f64>,
     /// What noise alone gives for that figure, metres.
     pub shape_noise_m: Option<f64>,
+    /// ICP's point-to-plane residual over the overlap, metres.
+    pub overlap_rmse_m: f64,
+    /// What the heads' predicted per-point noise gives for it, metres.
+    pub predicted_overlap_m: f64,
     /// The likely cause.
     pub verdict: Verdict,
 }
@@ -60,13 +68,21 @@ impl Verdict {
     }
 }
 
-/// The checks of a two-head fusion.
-pub fn check(icp: &IcpResult, agreement: Option<&ShapeAgreement>) -> SelfCheck {
+/// The checks of a two-head fusion; `predicted_m` is each head's RMS
+/// predicted per-point sigma.
+pub fn check(
+    icp: &IcpResult,
+    agreement: Option<&ShapeAgreement>,
+    predicted_m: [f64; 2],
+) -> SelfCheck {
     let shape_rms_m = agreement.map(|a| a.systematic_rms_m);
+    let predicted_overlap_m = predicted_m[0].hypot(predicted_m[1]);
     let pose_off = icp.rotation_correction_deg > POSE_ROTATION_LIMIT_DEG
         || icp.translation_correction_m > POSE_TRANSLATION_LIMIT_M;
+    let beyond_noise = icp.overlap_rmse_m > OVERLAP_RATIO_LIMIT * predicted_overlap_m;
     let verdict = match shape_rms_m {
         Some(s) if s > SHAPE_LIMIT_M => Verdict::HeadModel,
+        _ if beyond_noise => Verdict::HeadModel,
         _ if pose_off => Verdict::HeadToHeadPose,
         _ => Verdict::Consistent,
     };
@@ -75,6 +91,8 @@ pub fn check(icp: &IcpResult, agreement: Option<&ShapeAgreement>) -> SelfCheck {
         pose_translation_m: icp.translation_correction_m,
         shape_rms_m,
         shape_noise_m: agreement.map(|a| a.noise_rms_m),
+        overlap_rmse_m: icp.overlap_rmse_m,
+        predicted_overlap_m,
         verdict,
     }
 }
@@ -96,11 +114,14 @@ pub fn warning(c: &SelfCheck) -> Option<String> {
         Verdict::Consistent => None,
         Verdict::HeadModel => Some(format!(
             "calibration inconsistent: after the best rigid fit the two heads still disagree in shape by \
-             {shape} RMS (noise alone: {noise}; limit {:.0} um), so a head's camera intrinsics \
-             (focal length, principal point, distortion) or its projector model is likely off; \
-             ICP turned the calibrated head-to-head pose by {pose} to compensate. The fused cloud is \
-             distorted: recalibrate the heads",
-            SHAPE_LIMIT_M * 1e6
+             {shape} RMS (noise alone: {noise}; limit {:.0} um) and their overlap residual is {:.0} um \
+             against {:.0} um their noise predicts, so a head's camera intrinsics (focal length, \
+             principal point, distortion) or its projector model is likely off; ICP turned the \
+             calibrated head-to-head pose by {pose} to compensate. The fused cloud is distorted: \
+             recalibrate the heads",
+            SHAPE_LIMIT_M * 1e6,
+            c.overlap_rmse_m * 1e6,
+            c.predicted_overlap_m * 1e6
         )),
         Verdict::HeadToHeadPose => Some(format!(
             "calibration inconsistent: ICP had to move the calibrated head-to-head pose by {pose} \
@@ -135,6 +156,9 @@ mod tests {
     use super::*;
     use nalgebra::Isometry3;
 
+    /// The twin's large-part: 93.8 / 94.3 um predicted per head.
+    const PREDICTED: [f64; 2] = [93.8e-6, 94.3e-6];
+
     fn icp(deg: f64, m: f64) -> IcpResult {
         IcpResult {
             transform: Isometry3::identity(),
@@ -161,11 +185,11 @@ mod tests {
     #[test]
     fn each_case_names_its_cause_and_its_size() {
         // The twin's large-part with its true calibration.
-        let ok = check(&icp(0.0014, 7e-6), Some(&agreement(8.7e-6)));
+        let ok = check(&icp(0.0014, 7e-6), Some(&agreement(8.7e-6)), PREDICTED);
         assert_eq!(ok.verdict, Verdict::Consistent);
         assert!(warning(&ok).is_none());
         // Camera fx of head A 0.5 % off (measured: 1.57 deg / 2.95 mm, 104 um).
-        let fx = check(&icp(1.575, 2.95e-3), Some(&agreement(104e-6)));
+        let fx = check(&icp(1.575, 2.95e-3), Some(&agreement(104e-6)), PREDICTED);
         assert_eq!(fx.verdict, Verdict::HeadModel);
         let w = warning(&fx).unwrap();
         assert!(
@@ -173,14 +197,23 @@ mod tests {
             "{w}"
         );
         // A pose error alone.
-        let pose = check(&icp(0.8, 1e-3), Some(&agreement(9e-6)));
+        let pose = check(&icp(0.8, 1e-3), Some(&agreement(9e-6)), PREDICTED);
         assert_eq!(pose.verdict, Verdict::HeadToHeadPose);
         assert!(warning(&pose).unwrap().contains("0.80 deg / 1.00 mm"));
         // Too small an overlap to judge the shape: the pose check still runs.
         assert_eq!(
-            check(&icp(0.1, 5e-3), None).verdict,
+            check(&icp(0.1, 5e-3), None, PREDICTED).verdict,
             Verdict::HeadToHeadPose
         );
-        assert_eq!(check(&icp(0.1, 1e-4), None).verdict, Verdict::Consistent);
+        assert_eq!(
+            check(&icp(0.1, 1e-4), None, PREDICTED).verdict,
+            Verdict::Consistent
+        );
+        // A residual far beyond the heads' noise names the heads' models.
+        let mut noisy = icp(0.1, 1e-4);
+        noisy.overlap_rmse_m = 300e-6;
+        let c = check(&noisy, None, PREDICTED);
+        assert_eq!(c.verdict, Verdict::HeadModel);
+        assert!(warning(&c).unwrap().contains("300 um against 133 um"));
     }
 }
