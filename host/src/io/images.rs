@@ -390,27 +390,6 @@ fn save_png(path: &Path, img: &DynamicImage) -> Result<(), ImageError> {
     save_bytes(path, &bytes)
 }
 
-/// Maps a raster to [0, 1] for viewing: NaN -> 0, finite values stretched min..max.
-pub fn normalise_for_view(img: &Raster<f32>) -> Raster<f32> {
-    let (min, max) = img
-        .data
-        .iter()
-        .filter(|v| v.is_finite())
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    let span = if max > min { max - min } else { 1.0 };
-    Raster {
-        width: img.width,
-        height: img.height,
-        data: img
-            .data
-            .iter()
-            .map(|&v| if v.is_finite() { (v - min) / span } else { 0.0 })
-            .collect(),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
