@@ -152,8 +152,8 @@ pub fn draw(values: &Raster<f32>, classes: &Raster<PixelClass>, spec: &PictureSp
     let margin = 4 * s;
     // Wide enough for the legend's longest line even on a small image.
     let width = w.max(44 * glyph + 2 * margin);
-    let layout = Layout::new(width, glyph, margin);
-    let legend_lines = layout.legend_lines(classes);
+    let legend = Legend::lay_out(classes, width, glyph, margin);
+    let legend_lines = legend.lines;
     let panel_h =
         margin + glyph + margin + glyph + s * 2 + glyph + margin + legend_lines * (glyph + margin);
     let mut img = Raster::filled(width, h + panel_h, PANEL);
@@ -204,7 +204,7 @@ pub fn draw(values: &Raster<f32>, classes: &Raster<PixelClass>, spec: &PictureSp
         s,
     );
     y += glyph + margin;
-    let legend = layout.draw_legend(&mut img, y, classes, s);
+    let legend = legend.draw(&mut img, y, s);
     Picture {
         image: img,
         lo,
@@ -255,74 +255,59 @@ fn number(v: f64) -> String {
     }
 }
 
-/// Where legend items go: left to right, wrapping at the panel's width.
-struct Layout {
-    width: usize,
+/// The legend, laid out once: each marked class with its pixel count and
+/// label, left to right, wrapping at the panel's width.
+struct Legend {
+    /// (class, pixels, label, line, x) per item.
+    items: Vec<(PixelClass, usize, String, usize, usize)>,
+    /// Lines the items take.
+    lines: usize,
     glyph: usize,
     margin: usize,
 }
 
-impl Layout {
-    fn new(width: usize, glyph: usize, margin: usize) -> Self {
-        Layout {
-            width,
+impl Legend {
+    fn lay_out(classes: &Raster<PixelClass>, width: usize, glyph: usize, margin: usize) -> Self {
+        let counts = counts(classes);
+        let mut items = Vec::new();
+        let (mut line, mut x) = (0, margin);
+        for (class, pixels) in PixelClass::MARKED.into_iter().zip(counts) {
+            let share = 100.0 * pixels as f64 / classes.len().max(1) as f64;
+            let label = format!("{} {share:.1}%", class.label());
+            // Swatch, a space, the label, two spaces.
+            let item_w = glyph * (2 + label.len() + 2);
+            if x > margin && x + item_w > width {
+                line += 1;
+                x = margin;
+            }
+            items.push((class, pixels, label, line, x));
+            x += item_w;
+        }
+        Legend {
+            items,
+            lines: line + 1,
             glyph,
             margin,
         }
     }
 
-    fn item_text(class: PixelClass, pixels: usize, total: usize) -> String {
-        let share = 100.0 * pixels as f64 / total.max(1) as f64;
-        format!("{} {share:.1}%", class.label())
-    }
-
-    /// Top-left x of each item on its line (line index, x), and the line count.
-    fn place(&self, classes: &Raster<PixelClass>) -> (Vec<(usize, usize)>, usize) {
-        let counts = counts(classes);
-        let mut places = Vec::new();
-        let (mut line, mut x) = (0, self.margin);
-        for (k, class) in PixelClass::MARKED.iter().enumerate() {
-            let item_w =
-                self.glyph * (2 + Self::item_text(*class, counts[k], classes.len()).len() + 2);
-            if x > self.margin && x + item_w > self.width {
-                line += 1;
-                x = self.margin;
-            }
-            places.push((line, x));
-            x += item_w;
-        }
-        (places, line + 1)
-    }
-
-    fn legend_lines(&self, classes: &Raster<PixelClass>) -> usize {
-        self.place(classes).1
-    }
-
-    fn draw_legend(
-        &self,
-        img: &mut Raster<[u8; 3]>,
-        y0: usize,
-        classes: &Raster<PixelClass>,
-        s: usize,
-    ) -> Vec<LegendEntry> {
-        let counts = counts(classes);
-        let (places, _) = self.place(classes);
+    fn draw(&self, img: &mut Raster<[u8; 3]>, y0: usize, s: usize) -> Vec<LegendEntry> {
+        let glyph = self.glyph;
         let mut entries = Vec::new();
-        for (k, (class, (line, x))) in PixelClass::MARKED.iter().zip(places).enumerate() {
-            let y = y0 + line * (self.glyph + self.margin);
+        for (class, pixels, label, line, x) in &self.items {
+            let (x, y) = (*x, y0 + line * (glyph + self.margin));
             let colour = class.colour().unwrap_or(INK);
             // A swatch with a black frame, so light grey shows on white.
-            for dy in 0..self.glyph {
-                for dx in 0..self.glyph {
-                    let edge = dx == 0 || dy == 0 || dx + 1 == self.glyph || dy + 1 == self.glyph;
+            for dy in 0..glyph {
+                for dx in 0..glyph {
+                    let edge = dx == 0 || dy == 0 || dx + 1 == glyph || dy + 1 == glyph;
                     img.data[(y + dy) * img.width + x + dx] = if edge { INK } else { colour };
                 }
             }
-            let label = Self::item_text(*class, counts[k], classes.len());
-            text(img, x + 2 * self.glyph, y, &label, s);
+            text(img, x + 2 * glyph, y, label, s);
             entries.push(LegendEntry {
                 class: *class,
-                pixels: counts[k],
+                pixels: *pixels,
                 swatch_xy: (x, y),
             });
         }
