@@ -256,6 +256,15 @@ pub enum ReportError {
     },
 }
 
+/// A report figure for people (console, page): `v` with `decimals` and its
+/// unit, or "n/a" when it does not exist (no truth, no points: `None` or NaN).
+pub fn figure(v: Option<f64>, decimals: usize, unit: &str) -> String {
+    match v.filter(|v| v.is_finite()) {
+        Some(v) => format!("{v:.decimals$} {unit}").trim_end().to_string(),
+        None => "n/a".into(),
+    }
+}
+
 /// Writes `report` as pretty JSON (temporary file, then rename).
 pub fn write_report(path: &Path, report: &ScanReport) -> Result<(), ReportError> {
     let text = serde_json::to_string_pretty(report)?;

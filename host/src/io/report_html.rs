@@ -5,7 +5,7 @@
 
 use base64::Engine;
 
-use super::report::ScanReport;
+use super::report::{figure as fig, ScanReport};
 
 /// A picture on the page.
 #[derive(Clone, Debug, PartialEq)]
@@ -145,14 +145,6 @@ pub fn escape(s: &str) -> String {
         }
     }
     out
-}
-
-/// A figure for a table cell: "n/a" when it does not exist.
-fn fig(v: Option<f64>, decimals: usize, unit: &str) -> String {
-    match v.filter(|v| v.is_finite()) {
-        Some(v) => format!("{v:.decimals$} {unit}").trim_end().to_string(),
-        None => "n/a".into(),
-    }
 }
 
 /// The page of a scan.

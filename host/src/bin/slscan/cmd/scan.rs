@@ -10,7 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use slscan::board::ClientConfig;
 use slscan::calibration::{read_rig, RigCalibration};
 use slscan::dealias::DealiasMethod;
-use slscan::io::report::ScanReport;
+use slscan::io::report::{figure, ScanReport};
 use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{FolderProjector, FolderProjectorHead, PatternDelivery};
 use slscan::rig::hardware::HardwareRig;
@@ -387,16 +387,8 @@ fn load_network(
 }
 
 fn print_summary(report: &ScanReport) {
-    // A figure that does not exist (no truth, no points) reads "n/a", not
-    // NaN; f1 carries its unit, which "n/a" does not.
-    let f1 = |v: Option<f64>| {
-        v.filter(|v| v.is_finite())
-            .map_or("n/a".to_string(), |v| format!("{v:.1} um"))
-    };
-    let f3 = |v: Option<f64>| {
-        v.filter(|v| v.is_finite())
-            .map_or("n/a".to_string(), |v| format!("{v:.3}"))
-    };
+    let f1 = |v: Option<f64>| figure(v, 1, "um");
+    let f3 = |v: Option<f64>| figure(v, 3, "");
     for h in &report.heads {
         println!(
             "head {}: {} points, RMSE {} (predicted {}; median {}, {} over 1 mm), coverage {}",
