@@ -195,17 +195,43 @@ fn clear_earlier_patterns(dir: &std::path::Path) -> anyhow::Result<()> {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return Ok(());
     };
-    let ours = |name: &str| {
-        PATTERN_PREFIXES.iter().any(|prefix| {
-            name.strip_prefix(prefix)
-                .and_then(|rest| rest.strip_suffix(".png"))
-                .is_some_and(|n| n.len() == 3 && n.bytes().all(|b| b.is_ascii_digit()))
-        })
-    };
     let paths = entries
         .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_str().is_some_and(ours))
+        .filter(|e| e.file_name().to_str().is_some_and(is_pattern_file))
         .map(|e| e.path());
     slscan::io::outputs::OutputSet::new(paths).clear()?;
     Ok(())
+}
+
+/// A name this command writes: a prefix, the index in at least three
+/// digits (`{i:03}` gives four from pattern 1000 on), `.png`.
+fn is_pattern_file(name: &str) -> bool {
+    PATTERN_PREFIXES.iter().any(|prefix| {
+        name.strip_prefix(prefix)
+            .and_then(|rest| rest.strip_suffix(".png"))
+            .is_some_and(|n| n.len() >= 3 && n.bytes().all(|b| b.is_ascii_digit()))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn every_index_this_command_writes_is_its_own_and_nothing_else() {
+        for name in [
+            "pattern_000.png",
+            "pattern_1000.png",
+            "bitplanes_012.png",
+            "tfc_rgb_023.png",
+        ] {
+            assert!(super::is_pattern_file(name), "{name}");
+        }
+        for name in [
+            "pattern_01.png",
+            "pattern_abc.png",
+            "notes.png",
+            "pattern_000.tif",
+        ] {
+            assert!(!super::is_pattern_file(name), "{name}");
+        }
+    }
 }
