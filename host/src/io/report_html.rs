@@ -46,6 +46,24 @@ pub struct Page {
     pub raw: Option<String>,
 }
 
+/// Writes a rendered page to `path` (temporary file, then rename).
+pub fn write_html(path: &std::path::Path, html: &str) -> Result<(), PageError> {
+    super::write_atomically(path, |w| w.write_all(html.as_bytes())).map_err(|source| PageError {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+/// The report page could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("writing {path}: {source}")]
+pub struct PageError {
+    /// The page.
+    pub path: std::path::PathBuf,
+    /// Why.
+    pub source: std::io::Error,
+}
+
 /// The page as HTML.
 pub fn render(page: &Page) -> String {
     let mut h = String::with_capacity(1 << 16);

@@ -14,7 +14,7 @@ use crate::io::report::{
     HeadReport, IcpReport, NetworkRunReport, ReportError, ScanReport, SelfCheckReport,
     SphereReport,
 };
-use crate::io::report_html::PagePicture;
+use crate::io::report_html::{scan_page, write_html, PageError, PagePicture};
 use crate::pictures::{head_pictures, HeadPictures, KINDS};
 use crate::raster::Raster;
 
@@ -44,6 +44,9 @@ pub enum OutputError {
     /// The report.
     #[error(transparent)]
     Report(#[from] ReportError),
+    /// The report page.
+    #[error(transparent)]
+    Page(#[from] PageError),
 }
 
 /// Every file [`write_scan`] writes into its folder (for either head).
@@ -305,10 +308,7 @@ fn write_files(
     }
     let report = report(scan);
     write_report(&dir.join("report.json"), &report)?;
-    write_page(
-        &dir.join("report.html"),
-        &crate::io::report_html::scan_page(&report, &page),
-    )?;
+    write_html(&dir.join("report.html"), &scan_page(&report, &page))?;
     // Without a fused cloud there is no scan: the per-head clouds and the
     // report say why.
     if scan.fused.failure.is_none() {
@@ -316,11 +316,6 @@ fn write_files(
     }
     progress(Progress::Step);
     Ok(report)
-}
-
-/// Writes the report page atomically.
-fn write_page(path: &Path, html: &str) -> Result<(), OutputError> {
-    Ok(save_bytes(path, html.as_bytes())?)
 }
 
 /// `cloud_{view}.png` for each of [`CLOUD_VIEWS`]: normals from the

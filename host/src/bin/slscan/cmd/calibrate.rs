@@ -23,7 +23,7 @@ use slscan::calibration::head::{
 };
 use slscan::calibration::{write_rig, RigCalibration};
 use slscan::io::outputs::OutputSet;
-use slscan::io::report_html::{render, Page, Table};
+use slscan::io::report_html::{render, write_html, Page, Table};
 use slscan::io::write_atomically;
 
 use super::calibrate_sim_options::SimOptions;
@@ -140,9 +140,7 @@ fn write_page(args: &Args) -> anyhow::Result<()> {
         text: Some(lines.join("\n")),
         raw: std::fs::read_to_string(&args.out).ok(),
     });
-    let path = page_path(&args.out);
-    write_atomically(&path, |w| w.write_all(html.as_bytes()))
-        .with_context(|| format!("writing {}", path.display()))
+    Ok(write_html(&page_path(&args.out), &html)?)
 }
 
 fn calibrate(args: &Args) -> anyhow::Result<()> {

@@ -12,7 +12,7 @@ use slscan::io::images::{list_images, load_set, save_bytes, ExposureLimits, Imag
 use slscan::io::npy::{write_npy_f32, write_npy_u8};
 use slscan::io::outputs::OutputSet;
 use slscan::io::ply::write_ply;
-use slscan::io::report_html::{render, Page, PagePicture, Table};
+use slscan::io::report_html::{render, write_html, Page, PagePicture, Table};
 use slscan::pictures::{head_pictures, summarise_frames, HeadPictures, KINDS};
 use slscan::raster::Raster;
 use slscan::reconstruct::{Directions, ReconstructConfig, Reconstructor};
@@ -287,7 +287,7 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
         text: None,
         raw: None,
     });
-    save_bytes(&page_path(&args.out), page.as_bytes())?;
+    write_html(&page_path(&args.out), &page)?;
     let clock = Instant::now();
     write_ply(&args.out, &out.cloud)?;
     lap(&mut timings, "write", clock);
