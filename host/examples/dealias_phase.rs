@@ -31,6 +31,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         projector: scan.projector_px,
     };
     let (scene, rig) = built_in("large-part", &detail)?;
+    let calibration = slscan::sim::truth::twin_calibration(&rig, 2);
     let twin = Arc::new(TwinRig::new(scene, rig)?);
     let mut sim = SimRig::start(
         twin.clone(),
@@ -41,7 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             noise_seed: seed,
         },
     )?;
-    let mut captured = capture::capture(&mut sim, scan, 2, &mut |_| {})?;
+    let mut captured = capture::capture(&mut sim, scan, &calibration, &mut |_| {})?;
     let solver = AnalyticDealiaser::new(
         &scan.periods_px,
         captured.steps,

@@ -15,6 +15,7 @@
 //! digital twin); [`fit`] fits planes and spheres for accuracy reports.
 #![warn(missing_docs)]
 
+pub mod adaptive;
 pub mod board;
 pub mod calibration;
 pub mod dealias;

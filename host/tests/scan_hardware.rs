@@ -11,6 +11,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
+use slscan::adaptive::hdr::HdrParams;
 use slscan::board::ClientConfig;
 use slscan::calibration::{write_rig, RigCalibration};
 use slscan::dealias::DealiasMethod;
@@ -21,7 +22,7 @@ use slscan::rig::folder_projector::{
 use slscan::rig::hardware::HardwareRig;
 use slscan::rig::serial_board::SerialBoard;
 use slscan::rig::RigError;
-use slscan::scan::{run_on_rig, Mode, ScanConfig, ScanError, ScanResult};
+use slscan::scan::{run_on_rig, Exposures, Mode, ScanConfig, ScanError, ScanResult};
 use slscan::sim::scan::{noise_sigma, shot_noise_share, sim_sensor};
 use slscan::sim::truth::ground_truth;
 
@@ -206,6 +207,50 @@ fn a_one_head_hardware_rig_scans_with_its_head_alone() {
     assert_eq!(result.fused.cloud.len(), result.heads[0].cloud_in_a.len());
     assert!(result.fused.icp.is_none());
     assert!(!folders.patterns.join("B").exists());
+    let _ = std::fs::remove_dir_all(&folders.root);
+}
+
+#[test]
+fn adaptive_projection_runs_its_three_board_runs_through_the_hardware_path() {
+    // Head A alone: floods + the full set in one run, then the adapted set
+    // (patterns written anew for the DMD GUI) at the exposure it chose.
+    let (result, folders) = with_vendor_tools("adaptive", Fault::None, |port, folders| {
+        let (twin, calibration) = twin();
+        let one = RigCalibration::single(calibration.heads[0].clone());
+        let mut rig = hardware_rig(port, folders, Duration::from_secs(30), &one)?;
+        let truth = ground_truth(twin, 1).expect("twin truth");
+        let mut config = config(Mode::Sequential);
+        config.exposures = Exposures::AdaptiveHdr(HdrParams::default());
+        run_on_rig(
+            &mut rig,
+            &one,
+            "head A of the twin truth as a rig file",
+            Some(&truth),
+            &config,
+            &mut |_| {},
+        )
+    });
+    let result = result.expect("scan runs");
+    let head = &result.heads[0];
+    let t = head.truth.as_ref().expect("measured");
+    let a = head.exposure.adaptive.expect("adaptive figures");
+    eprintln!(
+        "adaptive, one head: RMSE {:.1} um (predicted {:.1} um), coverage {:.3}, exposure {:.2} ({})",
+        t.accuracy.rmse_m * 1e6,
+        t.accuracy.predicted_rms_m * 1e6,
+        t.coverage,
+        a.exposure.scale,
+        a.exposure.limit.name()
+    );
+    assert_eq!(head.exposure.images, 7 + 12 + 12);
+    assert_eq!(head.exposure.scales, [a.exposure.scale]);
+    assert!(t.accuracy.rmse_m < 200e-6, "{:?}", t.accuracy);
+    assert_eq!(t.accuracy.outliers, 0);
+    assert!(t.accuracy.own_coverage > 0.9, "{:?}", t.accuracy);
+    // The DMD folder holds the adapted set alone, not the 19 preliminaries.
+    let dir = folders.patterns.join("A");
+    assert!(dir.join(pattern_file_name(11)).is_file());
+    assert!(!dir.join(pattern_file_name(12)).exists());
     let _ = std::fs::remove_dir_all(&folders.root);
 }
 

@@ -80,6 +80,11 @@ pub const BUILT_IN: &[BuiltIn] = &[
         build: metal_part,
     },
     BuiltIn {
+        name: "hdr-part",
+        about: "polished curved metal beside a matte black block: highlights saturate, the black starves (high dynamic range)",
+        build: hdr_part,
+    },
+    BuiltIn {
         name: "colour-object",
         about: "multi-coloured sphere on a colour-patch board",
         build: colour_object,
@@ -326,6 +331,44 @@ fn metal_part(d: &Detail) -> Result<(Scene, Rig), TwinError> {
     );
     Ok((
         with_ambient(vec![part, boss, wall(0.56, 0.1)]),
+        single_head(d),
+    ))
+}
+
+/// Polished aluminium (a half-cylinder whose highlight band saturates the
+/// sensor at full projection: diffuse 0.5, specular peak 6 x a white
+/// diffuser, Blinn-Phong exponent 30, so about a fifth of its width
+/// saturates) beside a matte black block (reflectance 0.15: at the standard
+/// exposure its fringes are too weak for their orders to be counted), on a
+/// grey wall: the two ends of the sensor's range in one view.
+fn hdr_part(d: &Detail) -> Result<(Scene, Rig), TwinError> {
+    let radius_m = 0.045;
+    let mesh = Mesh::height_field(181, 121, 2.0 * radius_m, 0.15, |x, _| {
+        0.7 * (radius_m * radius_m - x * x).max(0.0).sqrt()
+    })?;
+    let polished = Material {
+        albedo: Albedo::Constant([0.5; 3]),
+        specular: 6.0,
+        shininess: 30.0,
+        ambient: [0.0; 3],
+    };
+    let metal = Object {
+        name: "polished-metal".into(),
+        shape: Shape::Mesh(Arc::new(mesh)),
+        material: polished,
+        pose: Pose::translation(-0.05, 0.0, 0.5),
+        motion: Motion::Static,
+    };
+    let black = Object::new(
+        "matte-black",
+        Shape::Cuboid {
+            half_m: V3::new(0.04, 0.07, 0.02),
+        },
+        matte(0.15, 0.15, 0.15),
+        Pose::new(V3::new(0.05, 0.0, 0.5), V3::new(0.0, -0.3, 0.0)),
+    );
+    Ok((
+        with_ambient(vec![metal, black, wall(0.6, 0.3)]),
         single_head(d),
     ))
 }

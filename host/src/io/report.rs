@@ -46,6 +46,65 @@ pub struct HeadReport {
     /// Fitted minus true distance of the first two spheres' centres,
     /// micrometres (null unless this head fitted two).
     pub sphere_centre_distance_error_um: Option<f64>,
+    /// How the fringes were exposed and what the exposure left.
+    pub exposure: ExposureReport,
+}
+
+/// How a head's fringes were exposed and what the exposure left.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ExposureReport {
+    /// `single`, `multi-exposure` or `adaptive-hdr`.
+    pub kind: String,
+    /// Camera images the head took (preliminaries included).
+    pub images: usize,
+    /// Exposure of each fringe set reconstructed, in standard exposures.
+    pub exposure_scales: Vec<f64>,
+    /// Fraction of the camera's pixels saturated in every fringe set
+    /// (masked in the sequential mode).
+    pub saturated_fraction: f64,
+    /// Fraction of the camera's pixels below the modulation floor
+    /// (saturated ones not counted).
+    pub below_modulation_floor_fraction: f64,
+    /// Adaptive projection: what it measured first and chose (null otherwise).
+    pub adaptive: Option<AdaptiveReport>,
+}
+
+/// What adaptive projection measured before adapting, and chose.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct AdaptiveReport {
+    /// The preliminary images: the grey floods, in projection order
+    /// (written as `flood_{head}_{i}.png`), and one full-intensity fringe set.
+    pub flood_files: Vec<String>,
+    /// Grey level of each flood.
+    pub flood_levels: Vec<f32>,
+    /// The adapted patterns as sent to the DMD (`adapted_{head}_{i}.png`).
+    pub pattern_files: Vec<String>,
+    /// The chosen exposure of the adapted fringes, in standard exposures.
+    pub exposure_scale: f64,
+    /// What limited it.
+    pub exposure_limited_by: String,
+    /// Fraction of the camera's pixels saturated in the full-intensity set.
+    pub saturated_fraction_before: f64,
+    /// Fraction below the modulation floor in it (saturated ones not counted).
+    pub below_modulation_floor_fraction_before: f64,
+    /// Fraction saturated in the brightest flood.
+    pub saturated_fraction_full_flood: f64,
+    /// Pixels that saturate even at the lowest lit flood (masked if they
+    /// still saturate in the adapted set).
+    pub saturates_at_lowest_pixels: usize,
+    /// Pixels the chosen exposure cannot hold under the target even at the
+    /// lowest usable level.
+    pub cannot_hold_pixels: usize,
+    /// Pixels projected at less than the full level.
+    pub lowered_pixels: usize,
+    /// Of those, placed on the DMD through their own phase.
+    pub mapped_by_phase_pixels: usize,
+    /// Of those, placed by a saturated cluster's homography.
+    pub mapped_by_homography_pixels: usize,
+    /// Of those, not placed (left at the full level).
+    pub unmapped_pixels: usize,
+    /// Saturated clusters mapped by homography.
+    pub clusters: usize,
 }
 
 /// One camera's de-aliasing of the simultaneous mode's overlap.
@@ -301,6 +360,14 @@ mod tests {
             dealias: None,
             spheres: Vec::new(),
             sphere_centre_distance_error_um: None,
+            exposure: ExposureReport {
+                kind: "single".into(),
+                images: 12,
+                exposure_scales: vec![1.0],
+                saturated_fraction: 0.0,
+                below_modulation_floor_fraction: f64::NAN,
+                adaptive: None,
+            },
         };
         let report = ScanReport {
             scene: "x".into(),

@@ -221,6 +221,40 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
                 fig(h.overlap_rmse_um, 1, "um"),
             ),
         ];
+        let e = &h.exposure;
+        let pct = |f: f64| format!("{:.2} %", 100.0 * f);
+        rows.push((
+            format!("exposure ({})", e.kind),
+            format!(
+                "{} images; fringes at {} x the standard exposure; saturated {}, below the modulation floor {}",
+                e.images,
+                e.exposure_scales
+                    .iter()
+                    .map(|s| format!("{s:.3}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                pct(e.saturated_fraction),
+                pct(e.below_modulation_floor_fraction)
+            ),
+        ));
+        if let Some(a) = &e.adaptive {
+            rows.push((
+                "adaptive projection".into(),
+                format!(
+                    "before: saturated {}, below the floor {}; exposure limited by {}; {} pixels lowered ({} by their phase, {} by homography over {} clusters, {} unplaced); {} saturate at the lowest flood, {} cannot be held",
+                    pct(a.saturated_fraction_before),
+                    pct(a.below_modulation_floor_fraction_before),
+                    a.exposure_limited_by,
+                    a.lowered_pixels,
+                    a.mapped_by_phase_pixels,
+                    a.mapped_by_homography_pixels,
+                    a.clusters,
+                    a.unmapped_pixels,
+                    a.saturates_at_lowest_pixels,
+                    a.cannot_hold_pixels
+                ),
+            ));
+        }
         if let Some(d) = &h.dealias {
             rows.push((
                 format!("de-aliasing ({})", d.method),

@@ -75,6 +75,22 @@ impl PixelMaps {
         }
     }
 
+    /// Overwrites pixel `i`'s values with `from`'s (same size).
+    ///
+    /// # Panics
+    /// If `i` is out of range of either.
+    pub fn copy_pixel(&mut self, from: &PixelMaps, i: usize) {
+        self.status[i] = from.status[i];
+        self.phase_u[i] = from.phase_u[i];
+        for (to, from) in self.point_m.iter_mut().zip(&from.point_m) {
+            to[i] = from[i];
+        }
+        self.depth_m[i] = from.depth_m[i];
+        self.sigma_m[i] = from.sigma_m[i];
+        self.modulation[i] = from.modulation[i];
+        self.background[i] = from.background[i];
+    }
+
     /// Every pixel's values in row-major order.
     pub fn iter(&self) -> impl ExactSizeIterator<Item = PixelResult> + '_ {
         (0..self.len()).map(|i| self.get(i))

@@ -372,6 +372,24 @@ impl Reconstructor {
         Ok(())
     }
 
+    /// The result of per-pixel maps assembled outside the row pass (a
+    /// multi-exposure scan's pixels, each taken from its best exposure):
+    /// the cloud is compacted from the maps' valid pixels as the row pass's
+    /// would be.
+    pub fn from_maps(&self, pixels: PixelMaps) -> Reconstruction {
+        let counts: Vec<usize> = pixels
+            .status
+            .chunks(pixels.width.max(1))
+            .map(|row| row.iter().filter(|&&s| s == PixelStatus::Valid).count())
+            .collect();
+        let mut out = Reconstruction {
+            pixels,
+            cloud: PointCloud::default(),
+        };
+        self.cloud_into(&out.pixels, &counts, &mut out.cloud);
+        out
+    }
+
     /// Compacts valid pixels into a cloud (see [`cloud::compact_into`]).
     fn cloud_into(&self, pixels: &PixelMaps, valid_per_row: &[usize], cloud: &mut PointCloud) {
         let c = self.triangulator.camera().centre_m();

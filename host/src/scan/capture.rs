@@ -19,7 +19,10 @@
 use protocol::HeadSet;
 
 use super::aliasing::{camera_lighting, AliasParams, FlatFields};
-use super::{plan, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
+use super::exposure::{below_floor, modulation_floor, saturated_pixels, Exposures};
+use super::{head_reconstructor, plan, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
+use crate::adaptive::hdr::{adapt, HdrAdaptation, HdrParams, PatternTarget};
+use crate::calibration::RigCalibration;
 use crate::dealias::{
     dealias_frames, dealias_frames_learned, mask_pixels, AnalyticDealiaser, AnalyticParams,
     DealiasMethod, DealiasStats,
@@ -28,12 +31,34 @@ use crate::demultiplex::{phase_shift_rad, Demultiplexer, DemuxError, TemporalBin
 use crate::raster::Raster;
 use crate::rig::{Board, Camera, Projector};
 
+/// What the adaptive capture took and chose for one head.
+#[derive(Clone, Debug)]
+pub struct AdaptiveRecord {
+    /// The grey floods, in projection order.
+    pub floods: Vec<Raster<f32>>,
+    /// The adaptation (exposure, level maps, adapted patterns, counts).
+    pub adaptation: HdrAdaptation,
+    /// Pixels saturated in the full-intensity fringe set.
+    pub before_saturated_px: usize,
+    /// Pixels of it below the modulation floor (saturated ones not counted).
+    pub before_below_floor_px: usize,
+}
+
 /// Frames ready for the 4-step (or N-step) reconstruction, per head.
 pub struct Captured {
-    /// Per head: what its camera took, in trigger order (for pictures).
+    /// Per head: the fringe frames its camera took, in trigger order (for
+    /// pictures and the saturation check), `set_scales.len()` sets of them.
     pub raw: Vec<Vec<Raster<f32>>>,
-    /// Per head: period-major frames of `steps` shifts for the reconstruction.
+    /// Per head: period-major frames of `steps` shifts for the
+    /// reconstruction, `set_scales.len()` sets of them one after another.
     pub frames: Vec<Vec<Raster<f32>>>,
+    /// Per head: exposure scale of each fringe set in `raw` and `frames`.
+    pub set_scales: Vec<Vec<f64>>,
+    /// Per head: camera images taken in all (preliminaries included).
+    pub images: Vec<usize>,
+    /// Per head: the adaptive capture's preliminaries and choice (empty
+    /// unless adaptive).
+    pub adaptive: Vec<AdaptiveRecord>,
     /// Steps per period in `frames`.
     pub steps: usize,
     /// Phase-noise factor of `frames` relative to raw `steps`-step frames
@@ -43,16 +68,28 @@ pub struct Captured {
     pub flat: Option<Vec<FlatFields>>,
 }
 
-/// Runs the board and cameras of `heads` heads for `config.mode` (the
-/// simultaneous modes take two; [`super::check_before_capture`] says so).
+/// Runs the board and cameras of the calibration's heads for
+/// `config.mode` (the simultaneous modes take two;
+/// [`super::check_before_capture`] says so) and `config.exposures`.
 pub fn capture<R: Board + Projector + Camera>(
     rig: &mut R,
     config: &ScanConfig,
-    heads: usize,
+    calibration: &RigCalibration,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Captured, ScanError> {
+    let heads = calibration.heads.len();
     match config.mode {
-        Mode::Sequential => sequential(rig, config, heads, progress),
+        Mode::Sequential => match &config.exposures {
+            Exposures::Single => sequential(rig, config, heads, &[1.0], progress),
+            Exposures::Multi(scales) => sequential(rig, config, heads, scales, progress),
+            Exposures::AdaptiveHdr(params) => {
+                adaptive_hdr(rig, config, calibration, params, progress)
+            }
+        },
+        mode if config.exposures != Exposures::Single => Err(ScanError::ExposuresNeedSequential {
+            mode,
+            exposures: config.exposures.name(),
+        }),
         Mode::Simultaneous => simultaneous(rig, config, progress),
         Mode::SimultaneousMultiplexed => multiplexed(rig, config, progress),
     }
@@ -78,10 +115,13 @@ fn run(rig: &mut impl Board, plan: &protocol::ScanPlan, what: &str) -> Result<()
     Ok(())
 }
 
+/// Head A alone, then head B alone, each taking the fringe set once per
+/// exposure scale (one board run each).
 fn sequential<R: Board + Projector + Camera>(
     rig: &mut R,
     config: &ScanConfig,
     heads: usize,
+    scales: &[f64],
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Captured, ScanError> {
     let count = config.periods_px.len() * config.steps;
@@ -92,17 +132,131 @@ fn sequential<R: Board + Projector + Camera>(
     let mut raw = Vec::new();
     for (h, set) in [HeadSet::A, HeadSet::B].into_iter().take(heads).enumerate() {
         let name = ["capture A", "capture B"][h];
-        progress(Progress::Stage { name, total: 2 });
+        progress(Progress::Stage {
+            name,
+            total: 2 * scales.len() as u64,
+        });
         rig.load_sequence(h, &patterns)?;
-        run(rig, &plan::one_pattern_per_exposure(set, count)?, name)?;
-        progress(Progress::Step);
-        raw.push(rig.take_frames(h)?);
-        progress(Progress::Step);
+        let mut taken = Vec::with_capacity(count * scales.len());
+        for &scale in scales {
+            run(
+                rig,
+                &plan::one_pattern_per_scaled_exposure(set, count, scale)?,
+                name,
+            )?;
+            progress(Progress::Step);
+            taken.extend(rig.take_frames(h)?);
+            progress(Progress::Step);
+        }
+        raw.push(taken);
         progress(Progress::Done);
     }
     Ok(Captured {
         frames: raw.clone(),
+        images: vec![count * scales.len(); heads],
         raw,
+        set_scales: vec![scales.to_vec(); heads],
+        adaptive: Vec::new(),
+        steps: config.steps,
+        noise_factor: 1.0,
+        flat: None,
+    })
+}
+
+/// Seed 003 per head, heads one after another: the grey floods and the
+/// full-intensity fringe set in one board run, the adaptation
+/// ([`crate::adaptive::hdr::adapt`]) on the floods and the set's
+/// reconstruction (saturated pixels masked), then the adapted set at the
+/// chosen exposure.
+fn adaptive_hdr<R: Board + Projector + Camera>(
+    rig: &mut R,
+    config: &ScanConfig,
+    calibration: &RigCalibration,
+    params: &HdrParams,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Captured, ScanError> {
+    let count = config.periods_px.len() * config.steps;
+    let levels = &params.levels;
+    let mut preliminary = plan::floods(config.projector_px, levels);
+    preliminary.extend(plan::fringe_sequence(
+        config.projector_px,
+        &config.periods_px,
+        config.steps,
+    ));
+    let preliminary = for_projector(preliminary, config);
+    let heads = calibration.heads.len();
+    let (mut raw, mut adaptive) = (Vec::new(), Vec::new());
+    for (h, set) in [HeadSet::A, HeadSet::B].into_iter().take(heads).enumerate() {
+        let name = ["capture A", "capture B"][h];
+        progress(Progress::Stage { name, total: 4 });
+        rig.load_sequence(h, &preliminary)?;
+        run(
+            rig,
+            &plan::one_pattern_per_exposure(set, levels.len() + count)?,
+            name,
+        )?;
+        let mut floods = rig.take_frames(h)?;
+        let mut full = floods.split_off(levels.len().min(floods.len()));
+        progress(Progress::Step);
+        let rc = head_reconstructor(calibration, h, config, config.steps, 1.0)?;
+        let saturated = saturated_pixels(&full, config.saturation_level);
+        crate::dealias::mask_pixels(&mut full, &saturated);
+        let refs: Vec<&Raster<f32>> = full.iter().collect();
+        let before = rc
+            .reconstruct(&refs, None)
+            .map_err(|source| ScanError::Reconstruct {
+                head: HEAD_NAMES[h],
+                source,
+            })?;
+        let flood_refs: Vec<&Raster<f32>> = floods.iter().collect();
+        let adaptation = adapt(
+            &flood_refs,
+            &before.pixels,
+            PatternTarget {
+                projector: &calibration.heads[h].projector,
+                dmd_px: config.projector_px,
+                periods_px: &config.periods_px,
+                steps: config.steps,
+            },
+            modulation_floor(&rc),
+            params,
+        )?;
+        progress(Progress::Step);
+        tracing::info!(
+            head = HEAD_NAMES[h],
+            exposure_scale = adaptation.exposure.scale,
+            limited_by = adaptation.exposure.limit.name(),
+            lowered_px = adaptation.stats.lowered_px,
+            by_homography_px = adaptation.stats.mapped_by_homography_px,
+            unmapped_px = adaptation.stats.unmapped_px,
+            "adapted the fringes"
+        );
+        rig.load_sequence(h, &for_projector(adaptation.patterns.clone(), config))?;
+        run(
+            rig,
+            &plan::one_pattern_per_scaled_exposure(set, count, adaptation.exposure.scale)?,
+            name,
+        )?;
+        progress(Progress::Step);
+        raw.push(rig.take_frames(h)?);
+        progress(Progress::Step);
+        progress(Progress::Done);
+        adaptive.push(AdaptiveRecord {
+            before_saturated_px: saturated.iter().filter(|&&s| s).count(),
+            before_below_floor_px: below_floor(&before, modulation_floor(&rc), &saturated),
+            floods,
+            adaptation,
+        });
+    }
+    Ok(Captured {
+        frames: raw.clone(),
+        images: vec![levels.len() + 2 * count; heads],
+        raw,
+        set_scales: adaptive
+            .iter()
+            .map(|a| vec![a.adaptation.exposure.scale])
+            .collect(),
+        adaptive,
         steps: config.steps,
         noise_factor: 1.0,
         flat: None,
@@ -154,6 +308,9 @@ fn simultaneous<R: Board + Projector + Camera>(
     Ok(Captured {
         frames,
         raw,
+        set_scales: vec![vec![1.0]; 2],
+        images: vec![count + plan::FLAT_FIELDS; 2],
+        adaptive: Vec::new(),
         steps: config.steps,
         noise_factor: 1.0,
         flat: Some(flat),
@@ -202,6 +359,9 @@ fn multiplexed<R: Board + Projector + Camera>(
     Ok(Captured {
         raw,
         frames,
+        set_scales: vec![vec![1.0]; 2],
+        images: vec![count; 2],
+        adaptive: Vec::new(),
         steps: 4,
         noise_factor: (4.0f32 / n as f32).sqrt(),
         flat: None,

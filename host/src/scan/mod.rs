@@ -24,6 +24,7 @@ pub mod aliasing;
 pub mod calibration_file;
 pub mod capture;
 pub mod clouds;
+pub mod exposure;
 mod fuse;
 pub mod measure;
 pub mod metrics;
@@ -45,6 +46,7 @@ use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
 use crate::rig::{Board, Camera, Projector, RigError};
 use clouds::transformed;
+pub use exposure::{ExposureFigures, Exposures};
 use metrics::PixelAccuracy;
 pub use truth::{CameraTruth, GroundTruth};
 
@@ -96,6 +98,12 @@ pub struct ScanConfig {
     /// The network of [`crate::dealias::DealiasMethod::Learned`], loaded
     /// and checked before the scan (`None` otherwise).
     pub learned: Option<std::sync::Arc<crate::dealias::learned::LearnedDealiaser>>,
+    /// How each head's fringes are exposed (sequential mode): once, at
+    /// several exposures, or adapted per projector pixel.
+    pub exposures: Exposures,
+    /// Frame value at and above which a sample counts as saturated; a pixel
+    /// with one in its fringe set is masked.
+    pub saturation_level: f32,
 }
 
 impl ScanConfig {
@@ -121,9 +129,16 @@ impl ScanConfig {
             precompensate_gamma: None,
             dealias: crate::dealias::DealiasMethod::default(),
             learned: None,
+            exposures: Exposures::Single,
+            saturation_level: DEFAULT_SATURATION_LEVEL,
         }
     }
 }
+
+/// Samples at or above 99.5 % of full scale count as saturated: a sensor
+/// that clips reads full scale there, and noise alone does not reach it
+/// from a level that would decode.
+pub const DEFAULT_SATURATION_LEVEL: f32 = 0.995;
 
 /// Seed 004's three pitches over the DMD width, S = 64 fringes: about
 /// 17.5 / 20 / 22.9 px on a 1280 px DMD, one beat spanning the width.
@@ -203,6 +218,23 @@ pub enum ScanError {
     /// The plan could not be built.
     #[error("plan")]
     Plan(#[from] plan::PlanBuildError),
+    /// Several exposures and adaptive projection take one head at a time.
+    #[error("{exposures} exposure needs the sequential mode, not {mode:?}")]
+    ExposuresNeedSequential {
+        /// The mode asked for.
+        mode: Mode,
+        /// The exposure kind asked for.
+        exposures: &'static str,
+    },
+    /// A multi-exposure scan without exposures.
+    #[error("a multi-exposure scan needs at least one exposure scale")]
+    NoExposures,
+    /// Adaptive projection could not adapt (bad preliminaries or parameters).
+    #[error("adaptive projection")]
+    Adaptive(#[from] crate::adaptive::AdaptiveError),
+    /// A saturation level outside (0, 1].
+    #[error("saturation level {0} must be in (0, 1] (frame units)")]
+    SaturationLevel(f32),
     /// Board, projector or camera failed (board silent, missing frame, ...).
     #[error("rig")]
     Rig(#[from] RigError),
@@ -274,6 +306,12 @@ pub struct HeadResult {
     pub predicted_rms_m: f64,
     /// Simultaneous mode: what de-aliasing (or masking) the overlap did.
     pub dealias: Option<crate::dealias::DealiasStats>,
+    /// What the exposure left (saturated, below the modulation floor) and,
+    /// adaptive, what it chose.
+    pub exposure: ExposureFigures,
+    /// Adaptive: the floods, the DMD level map and the adapted patterns, for
+    /// the outputs.
+    pub adaptive: Option<capture::AdaptiveRecord>,
     /// Figures against the ground truth (`None` on hardware).
     pub truth: Option<HeadTruth>,
 }
@@ -391,6 +429,25 @@ pub fn check_before_capture(
     if heads == 1 && config.mode != Mode::Sequential {
         return Err(ScanError::ModeNeedsTwoHeads { mode: config.mode });
     }
+    if !(config.saturation_level > 0.0 && config.saturation_level <= 1.0) {
+        return Err(ScanError::SaturationLevel(config.saturation_level));
+    }
+    match &config.exposures {
+        Exposures::Single => {}
+        _ if config.mode != Mode::Sequential => {
+            return Err(ScanError::ExposuresNeedSequential {
+                mode: config.mode,
+                exposures: config.exposures.name(),
+            })
+        }
+        Exposures::Multi(scales) if scales.is_empty() => return Err(ScanError::NoExposures),
+        Exposures::Multi(scales) => {
+            for &scale in scales {
+                plan::one_pattern_per_scaled_exposure(protocol::HeadSet::A, 1, scale)?;
+            }
+        }
+        Exposures::AdaptiveHdr(params) => params.validate()?,
+    }
     let periods = config.periods_px.len();
     if config.mode == Mode::Simultaneous
         && config.dealias == crate::dealias::DealiasMethod::Analytic
@@ -405,6 +462,28 @@ pub fn check_before_capture(
         return Err(ScanError::NoLearnedModel);
     }
     Ok(())
+}
+
+/// The reconstruction of head `h` with the scan's periods and noise, for
+/// frames of `steps` shifts whose phase noise is `noise_factor` times a raw
+/// frame's.
+pub(crate) fn head_reconstructor(
+    calibration: &RigCalibration,
+    h: usize,
+    config: &ScanConfig,
+    steps: usize,
+    noise_factor: f32,
+) -> Result<Reconstructor, ScanError> {
+    let mut rc_config = ReconstructConfig::new(config.periods_px.clone());
+    rc_config.steps = steps;
+    rc_config.noise_sigma = config.noise_sigma * noise_factor;
+    rc_config.shot_noise_share = config.shot_noise_share;
+    Reconstructor::from_head(&calibration.heads[h], rc_config).map_err(|source| {
+        ScanError::Reconstruct {
+            head: HEAD_NAMES[h],
+            source,
+        }
+    })
 }
 
 /// Wall-clock time per stage, logged as each ends.
@@ -447,7 +526,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     let mut clock = Clock::start();
     check_before_capture(calibration, config)?;
     let heads = calibration.heads.len();
-    let mut captured = capture::capture(rig, config, heads, progress)?;
+    let mut captured = capture::capture(rig, config, calibration, progress)?;
     clock.lap("capture");
     let mut warnings = Vec::new();
     let (aliased_masks, dealias_stats) =
@@ -462,26 +541,66 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         name: "reconstruct",
         total: heads as u64,
     });
-    for (h, head_frames) in captured.frames.iter().enumerate() {
+    let mut exposures = Vec::new();
+    let mut adaptive = std::mem::take(&mut captured.adaptive).into_iter();
+    for (h, (head_frames, raw)) in captured.frames.iter_mut().zip(&captured.raw).enumerate() {
         let head_name = HEAD_NAMES[h];
-        let mut rc_config = ReconstructConfig::new(config.periods_px.clone());
-        rc_config.steps = captured.steps;
-        rc_config.noise_sigma = config.noise_sigma * captured.noise_factor;
-        rc_config.shot_noise_share = config.shot_noise_share;
-        let rc = Reconstructor::from_head(&calibration.heads[h], rc_config).map_err(|source| {
-            ScanError::Reconstruct {
-                head: head_name,
-                source,
-            }
+        let rc = head_reconstructor(
+            calibration,
+            h,
+            config,
+            captured.steps,
+            captured.noise_factor,
+        )?;
+        let sets = captured.set_scales[h].len().max(1);
+        let raw_sets: Vec<&[Raster<f32>]> = raw.chunks(raw.len().div_ceil(sets).max(1)).collect();
+        let per_set = head_frames.len().div_ceil(sets).max(1);
+        let mut frame_sets: Vec<&mut [Raster<f32>]> = head_frames.chunks_mut(per_set).collect();
+        let (r, saturated) = exposure::reconstruct_sets(
+            &rc,
+            &raw_sets,
+            &mut frame_sets,
+            config.saturation_level,
+            config.mode == Mode::Sequential,
+        )
+        .map_err(|source| ScanError::Reconstruct {
+            head: head_name,
+            source,
         })?;
-        let refs: Vec<&Raster<f32>> = head_frames.iter().collect();
-        let r = rc
-            .reconstruct(&refs, None)
-            .map_err(|source| ScanError::Reconstruct {
-                head: head_name,
-                source,
-            })?;
         tracing::info!(head = head_name, points = r.cloud.len(), "reconstructed");
+        let record = if matches!(config.exposures, Exposures::AdaptiveHdr(_)) {
+            adaptive.next()
+        } else {
+            None
+        };
+        if config.mode == Mode::Sequential {
+            exposure::warn(
+                head_name,
+                &saturated,
+                record.as_ref().map(|r| &r.adaptation.stats),
+                &mut warnings,
+            );
+        }
+        exposures.push((
+            ExposureFigures {
+                images: captured.images[h],
+                scales: captured.set_scales[h].clone(),
+                saturated_px: saturated.iter().filter(|&&s| s).count(),
+                below_floor_px: exposure::below_floor(
+                    &r,
+                    exposure::modulation_floor(&rc),
+                    &saturated,
+                ),
+                pixels: saturated.len(),
+                adaptive: record.as_ref().map(|a| exposure::AdaptiveFigures {
+                    exposure: a.adaptation.exposure,
+                    stats: a.adaptation.stats,
+                    before_saturated_px: a.before_saturated_px,
+                    before_below_floor_px: a.before_below_floor_px,
+                }),
+            },
+            record,
+        ));
         recons.push(r);
         progress(Progress::Step);
     }
@@ -543,14 +662,17 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     };
     let heads = recons
         .into_iter()
+        .zip(exposures)
         .enumerate()
-        .map(|(h, recon)| HeadResult {
+        .map(|(h, (recon, (exposure, adaptive)))| HeadResult {
             name: HEAD_NAMES[h],
             frames: crate::pictures::summarise_frames(&captured.raw[h]),
             cloud_in_a: transformed(&recon.cloud, &a_from_head[h]),
             predicted_rms_m: measure::predicted_rms_m(&recon),
             reconstruction: recon,
             dealias: dealias_stats.get(h).copied(),
+            exposure,
+            adaptive,
             truth: head_truths[h].take(),
         })
         .collect();
@@ -635,6 +757,39 @@ mod tests {
                 Err(ScanError::BadPeriod { .. })
             ));
         }
+        // Exposure kinds the mode or the plan cannot run, a bad saturation level.
+        let mut c = config.clone();
+        c.exposures = Exposures::Multi(vec![]);
+        assert!(matches!(
+            check_before_capture(&rig(1, false), &c),
+            Err(ScanError::NoExposures)
+        ));
+        c.exposures = Exposures::Multi(vec![1.0, 100.0]);
+        assert!(matches!(
+            check_before_capture(&rig(1, false), &c),
+            Err(ScanError::Plan(plan::PlanBuildError::ExposureScale { .. }))
+        ));
+        c.exposures = Exposures::AdaptiveHdr(crate::adaptive::hdr::HdrParams::default());
+        check_before_capture(&rig(1, false), &c).unwrap();
+        let mut bad = crate::adaptive::hdr::HdrParams::default();
+        bad.rule.target = 1.5;
+        c.exposures = Exposures::AdaptiveHdr(bad);
+        assert!(matches!(
+            check_before_capture(&rig(1, false), &c),
+            Err(ScanError::Adaptive(_))
+        ));
+        let mut two = simultaneous.clone();
+        two.exposures = Exposures::Multi(vec![1.0, 0.25]);
+        assert!(matches!(
+            check_before_capture(&rig(2, true), &two),
+            Err(ScanError::ExposuresNeedSequential { .. })
+        ));
+        let mut c = config.clone();
+        c.saturation_level = 0.0;
+        assert!(matches!(
+            check_before_capture(&rig(1, false), &c),
+            Err(ScanError::SaturationLevel(_))
+        ));
         // Learned de-aliasing with no network loaded.
         simultaneous.dealias = crate::dealias::DealiasMethod::Learned;
         assert!(matches!(

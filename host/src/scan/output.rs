@@ -6,13 +6,13 @@ use std::path::{Path, PathBuf};
 use super::spheres::{centre_distance_error_m, SphereFigures};
 use super::{Mode, Progress, ScanResult, HEAD_NAMES};
 use crate::io::cloud_render::{render_cloud, splat_radius_for, CloudView};
-use crate::io::images::{encode_rgb_png, save_bytes, ImageError};
+use crate::io::images::{encode_rgb_png, save_bytes, save_gray_png, ImageError};
 use crate::io::outputs::{OutputSet, OutputSetError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
-    write_report, AliasedMaskReport, DealiasReport, FrameFitReport, FrameOffset, FusedReport,
-    HeadReport, IcpReport, NetworkRunReport, ReportError, ScanReport, SelfCheckReport,
-    SphereReport,
+    write_report, AdaptiveReport, AliasedMaskReport, DealiasReport, ExposureReport, FrameFitReport,
+    FrameOffset, FusedReport, HeadReport, IcpReport, NetworkRunReport, ReportError, ScanReport,
+    SelfCheckReport, SphereReport,
 };
 use crate::io::report_html::{scan_page, write_html, PageError, PagePicture};
 use crate::pictures::{head_pictures, HeadPictures, KINDS};
@@ -60,11 +60,30 @@ pub fn output_files() -> Vec<String> {
         files.extend(KINDS.iter().map(|kind| format!("{kind}_{tag}.png")));
     }
     files.extend(CLOUD_VIEWS.map(|(name, ..)| format!("cloud_{name}.png")));
+    for head in HEAD_NAMES {
+        let tag = head.to_lowercase();
+        files.extend((0..MAX_FLOODS).map(|i| flood_file(&tag, i)));
+        files.extend((0..protocol::limits::MAX_EXPOSURES).map(|i| adapted_file(&tag, i)));
+    }
     // Earlier versions' picture names, so an old run's leave too.
     for old in ["camera", "phase", "error"] {
         files.extend(HEAD_NAMES.map(|h| format!("{old}_{}.png", h.to_lowercase())));
     }
     files
+}
+
+/// Most flood images an adaptive scan writes per head (the names an
+/// earlier run may have left).
+const MAX_FLOODS: usize = crate::adaptive::hdr::MAX_FLOOD_LEVELS;
+
+/// Adaptive scan: flood `i` of the head tagged `tag`, as the camera took it.
+fn flood_file(tag: &str, i: usize) -> String {
+    format!("flood_{tag}_{i}.png")
+}
+
+/// Adaptive scan: adapted pattern `i` of the head tagged `tag`, as sent to its DMD.
+fn adapted_file(tag: &str, i: usize) -> String {
+    format!("adapted_{tag}_{i:02}.png")
 }
 
 /// [`output_files`] in `dir`.
@@ -179,6 +198,7 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                     sphere_centre_distance_error_um: t
                         .and_then(|t| centre_distance_error_m(&t.spheres))
                         .map(|e| e * um),
+                    exposure: exposure_report(h, &c.exposures),
                 }
             })
             .collect(),
@@ -224,6 +244,64 @@ pub fn report(scan: &ScanResult) -> ScanReport {
             .map(|(n, ms)| (n.to_string(), *ms))
             .collect(),
     }
+}
+
+/// A head's exposure figures; adaptive, with its preliminaries' files.
+fn exposure_report(h: &super::HeadResult, kind: &super::Exposures) -> ExposureReport {
+    let e = &h.exposure;
+    let share = |px: usize| px as f64 / e.pixels.max(1) as f64;
+    let tag = h.name.to_lowercase();
+    let adaptive = e.adaptive.zip(h.adaptive.as_ref()).map(|(a, record)| {
+        let levels = match kind {
+            super::Exposures::AdaptiveHdr(p) => p.levels.clone(),
+            _ => Vec::new(),
+        };
+        AdaptiveReport {
+            flood_files: (0..record.floods.len())
+                .map(|i| flood_file(&tag, i))
+                .collect(),
+            flood_levels: levels,
+            pattern_files: (0..record.adaptation.patterns.len())
+                .map(|i| adapted_file(&tag, i))
+                .collect(),
+            exposure_scale: a.exposure.scale,
+            exposure_limited_by: a.exposure.limit.name().into(),
+            saturated_fraction_before: share(a.before_saturated_px),
+            below_modulation_floor_fraction_before: share(a.before_below_floor_px),
+            saturated_fraction_full_flood: share(a.stats.saturated_in_full_flood_px),
+            saturates_at_lowest_pixels: a.stats.saturates_at_lowest_px,
+            cannot_hold_pixels: a.stats.cannot_hold_px,
+            lowered_pixels: a.stats.lowered_px,
+            mapped_by_phase_pixels: a.stats.mapped_by_phase_px,
+            mapped_by_homography_pixels: a.stats.mapped_by_homography_px,
+            unmapped_pixels: a.stats.unmapped_px,
+            clusters: a.stats.clusters,
+        }
+    });
+    ExposureReport {
+        kind: kind.name().into(),
+        images: e.images,
+        exposure_scales: e.scales.clone(),
+        saturated_fraction: share(e.saturated_px),
+        below_modulation_floor_fraction: share(e.below_floor_px),
+        adaptive,
+    }
+}
+
+/// Adaptive scan: the floods (16-bit, as the camera took them) and the
+/// adapted patterns (8-bit, as the DMD shows them).
+fn write_adaptive_images(
+    dir: &Path,
+    tag: &str,
+    record: &super::capture::AdaptiveRecord,
+) -> Result<(), OutputError> {
+    for (i, f) in record.floods.iter().enumerate().take(MAX_FLOODS) {
+        save_gray_png(&dir.join(flood_file(tag, i)), f, true)?;
+    }
+    for (i, p) in record.adaptation.patterns.iter().enumerate() {
+        save_gray_png(&dir.join(adapted_file(tag, i)), p, false)?;
+    }
+    Ok(())
 }
 
 fn sphere_report(f: &SphereFigures) -> SphereReport {
@@ -295,6 +373,9 @@ fn write_files(
                 caption: p.caption,
                 png: p.png,
             });
+        }
+        if let Some(record) = &h.adaptive {
+            write_adaptive_images(dir, &tag, record)?;
         }
         write_ply(&dir.join(format!("head_{tag}.ply")), &h.cloud_in_a)?;
         progress(Progress::Step);

@@ -54,6 +54,18 @@ pub fn shifted_fringes(
     frames
 }
 
+/// Uniform grey floods at `levels` (each in [0, 1]), as the DMD shows them
+/// (8-bit): the preliminary exposures of adaptive projection.
+pub fn floods(dmd_px: (u32, u32), levels: &[f32]) -> Vec<Raster<f32>> {
+    levels
+        .iter()
+        .map(|&l| {
+            let grey = (l.clamp(0.0, 1.0) * 255.0).round() / 255.0;
+            Raster::filled(dmd_px.0 as usize, dmd_px.1 as usize, grey)
+        })
+        .collect()
+}
+
 /// Flat-field exposures after the simultaneous mode's fringes.
 pub const FLAT_FIELDS: usize = 3;
 
@@ -84,7 +96,7 @@ pub fn precompensate_gamma(patterns: &mut [Raster<f32>], gamma: f64) {
 }
 
 /// Why a plan cannot be built.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PlanBuildError {
     /// More patterns than a plan's cycle holds exposures.
     #[error("{patterns} patterns need {patterns} exposures; a plan holds at most {max}")]
@@ -94,7 +106,22 @@ pub enum PlanBuildError {
         /// Exposures a plan holds.
         max: usize,
     },
+    /// An exposure scale the frame period cannot hold or the devices cannot
+    /// show (the pattern would be shorter than the projector's shortest).
+    #[error("exposure scale {scale} is outside {MIN_EXPOSURE_SCALE}..={MAX_EXPOSURE_SCALE} standard exposures of {} ms (a pattern must last at least the projector's shortest, a plan's cycle at most {} s)", SLOW_EXPOSURE_NS / 1_000_000, u32::MAX / 1_000_000_000)]
+    ExposureScale {
+        /// The scale asked for.
+        scale: f64,
+    },
 }
+
+/// Longest exposure, in standard exposures: 8 x 12 ms = 96 ms (the frame
+/// period stretches to 118 ms, 8.5 frames per second), so a 36-pattern plan
+/// still fits the plan's 4.29 s cycle.
+pub const MAX_EXPOSURE_SCALE: f64 = 8.0;
+/// Shortest exposure, in standard exposures: 1/32 of 10 ms = 312 us of
+/// pattern, over the DLPC350's shortest pattern period (235 us).
+pub const MIN_EXPOSURE_SCALE: f64 = 1.0 / 32.0;
 
 /// The two-head rig wiring (DLPC350 projectors, 6 MP mono cameras) with
 /// `patterns` exposures on `heads`, one pattern each, one frame period
@@ -104,6 +131,26 @@ pub fn one_pattern_per_exposure(
     heads: HeadSet,
     patterns: usize,
 ) -> Result<ScanPlan, PlanBuildError> {
+    one_pattern_per_scaled_exposure(heads, patterns, 1.0)
+}
+
+/// [`one_pattern_per_exposure`] with each exposure and its pattern's time on
+/// the mirrors `scale` times the standard ones (a camera's exposure time with
+/// the projector lit throughout it: the light of both the pattern and the
+/// ambient scales by `scale`), for multi-exposure and adaptive capture.
+pub fn one_pattern_per_scaled_exposure(
+    heads: HeadSet,
+    patterns: usize,
+    scale: f64,
+) -> Result<ScanPlan, PlanBuildError> {
+    if !(MIN_EXPOSURE_SCALE..=MAX_EXPOSURE_SCALE).contains(&scale) {
+        return Err(PlanBuildError::ExposureScale { scale });
+    }
+    let exposure_ns = (f64::from(SLOW_EXPOSURE_NS) * scale).round() as u32;
+    let display_ns = (f64::from(SLOW_DISPLAY_NS) * scale).round() as u32;
+    // A longer exposure stretches the frame period by as much (the camera's
+    // read-out and re-arm time after the exposure stays the same).
+    let frame_ns = SLOW_FRAME_NS.max(exposure_ns + (SLOW_FRAME_NS - SLOW_EXPOSURE_NS));
     if patterns > MAX_EXPOSURES {
         return Err(PlanBuildError::TooManyPatterns {
             patterns,
@@ -114,7 +161,8 @@ pub fn one_pattern_per_exposure(
         head(0, ProjectorModel::Dlpc350, CameraModel::Mono6Mp),
         head(1, ProjectorModel::Dlpc350, CameraModel::Mono6Mp),
     ];
-    let period_ns = patterns as u32 * SLOW_FRAME_NS;
+    let period_ns = u32::try_from(patterns as u64 * u64::from(frame_ns))
+        .map_err(|_| PlanBuildError::ExposureScale { scale })?;
     let mut plan = ScanPlan::new(&wiring, 1, period_ns, MARGIN_NS).map_err(|_| {
         PlanBuildError::TooManyPatterns {
             patterns,
@@ -125,12 +173,12 @@ pub fn one_pattern_per_exposure(
         let slot = PatternSlot {
             pattern_index: k as u16,
             offset_ns: SLOW_SLOT_OFFSET_NS,
-            display_ns: SLOW_DISPLAY_NS,
+            display_ns,
         };
         plan.push_exposure(
             heads,
-            CYCLE_LEAD_NS + k as u32 * SLOW_FRAME_NS,
-            SLOW_EXPOSURE_NS,
+            CYCLE_LEAD_NS + k as u32 * frame_ns,
+            exposure_ns,
             &[slot],
         )
         .map_err(|_| PlanBuildError::TooManyPatterns {
@@ -161,6 +209,38 @@ mod tests {
                 .expect("valid");
         }
         assert!(one_pattern_per_exposure(HeadSet::A, MAX_EXPOSURES + 1).is_err());
+    }
+
+    #[test]
+    fn scaled_exposures_validate_and_out_of_range_scales_are_refused() {
+        for scale in [MIN_EXPOSURE_SCALE, 0.25, 1.0, 2.5, MAX_EXPOSURE_SCALE] {
+            let plan = one_pattern_per_scaled_exposure(HeadSet::A, 36, scale).unwrap();
+            assert_eq!(
+                plan.exposures[0].duration_ns,
+                (f64::from(SLOW_EXPOSURE_NS) * scale).round() as u32
+            );
+            plan.validate(&BoardLimits::STM32G474)
+                .unwrap_or_else(|err| panic!("scale {scale}: {err:?}"));
+        }
+        for scale in [0.0, MAX_EXPOSURE_SCALE * 1.01, f64::NAN, -1.0] {
+            assert!(matches!(
+                one_pattern_per_scaled_exposure(HeadSet::A, 12, scale),
+                Err(PlanBuildError::ExposureScale { .. })
+            ));
+        }
+        // The longest exposure's cycle no longer fits 64 patterns.
+        assert!(matches!(
+            one_pattern_per_scaled_exposure(HeadSet::A, 64, MAX_EXPOSURE_SCALE),
+            Err(PlanBuildError::ExposureScale { .. })
+        ));
+    }
+
+    #[test]
+    fn floods_are_8_bit_uniform_levels() {
+        let f = floods((4, 2), &[0.0, 0.5, 1.0]);
+        assert_eq!(f.len(), 3);
+        assert!(f[1].data.iter().all(|&v| v == 128.0 / 255.0));
+        assert!(f[2].data.iter().all(|&v| v == 1.0));
     }
 
     #[test]

@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
+use slscan::adaptive::hdr::HdrParams;
 use slscan::board::ClientConfig;
 use slscan::calibration::{read_rig, RigCalibration};
 use slscan::dealias::DealiasMethod;
@@ -15,7 +16,9 @@ use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{FolderProjector, FolderProjectorHead, PatternDelivery};
 use slscan::rig::hardware::HardwareRig;
 use slscan::rig::serial_board::SerialBoard;
-use slscan::scan::{self, dealias_periods_px, default_periods_px, Mode, Progress, ScanConfig};
+use slscan::scan::{
+    self, dealias_periods_px, default_periods_px, Exposures, Mode, Progress, ScanConfig,
+};
 
 /// Options of `slscan scan`.
 #[derive(clap::Args)]
@@ -116,6 +119,47 @@ pub struct Args {
     /// (network evaluations per tile; the published DDPM used 4000).
     #[arg(long, default_value_t = 8)]
     sampler_steps: usize,
+    /// Adapt the projection to the surface (sequential mode): `hdr` takes 7
+    /// grey floods and one full-intensity fringe set, then projects fringes
+    /// whose level is chosen per projector pixel (lower where the surface
+    /// saturates) at an exposure chosen for the view (longer for dark parts).
+    #[arg(long, value_enum, conflicts_with = "exposures")]
+    adaptive: Option<AdaptiveArg>,
+    /// Multi-exposure scan (sequential mode): the fringe set at each of these
+    /// exposures, in standard exposures (e.g. 2.5,1,0.25), each pixel taken
+    /// from its best unsaturated one.
+    #[arg(long, value_delimiter = ',')]
+    exposures: Option<Vec<f64>>,
+    /// Frame value (0..1 of full scale) at and above which a sample counts
+    /// as saturated; pixels with one are masked.
+    #[arg(long, default_value_t = scan::DEFAULT_SATURATION_LEVEL)]
+    saturation_level: f32,
+}
+
+/// `--adaptive` values.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum AdaptiveArg {
+    /// Per-projector-pixel fringe level from 7 grey floods, and the one
+    /// exposure at which the most pixels decode: 31 images per head.
+    Hdr,
+    /// The same at the standard exposure, as seed 003 publishes it (it only
+    /// lowers the projector where the surface saturates; dark parts stay
+    /// as starved as in a plain scan).
+    HdrFixedExposure,
+}
+
+/// `--adaptive` / `--exposures`: how each head's fringes are exposed.
+fn exposures_for(args: &Args) -> Exposures {
+    match (&args.adaptive, &args.exposures) {
+        (Some(AdaptiveArg::Hdr), _) => Exposures::AdaptiveHdr(HdrParams::default()),
+        (Some(AdaptiveArg::HdrFixedExposure), _) => {
+            let mut params = HdrParams::default();
+            params.rule.range = (1.0, 1.0);
+            Exposures::AdaptiveHdr(params)
+        }
+        (None, Some(scales)) => Exposures::Multi(scales.clone()),
+        (None, None) => Exposures::Single,
+    }
 }
 
 /// `--dealias` values.
@@ -235,6 +279,8 @@ fn scan_sim(
     scan.dealias = args.dealias.into();
     scan.periods_px = periods_for(args, mode, scan.projector_px.0);
     scan.learned = load_network(args, mode, &scan.periods_px, scan.steps)?;
+    scan.exposures = exposures_for(args);
+    scan.saturation_level = args.saturation_level;
     Ok(scan_to_dir(&config, &args.out, progress)?)
 }
 
@@ -347,6 +393,8 @@ fn hardware_config(
     config.precompensate_gamma = args.precompensate_gamma;
     config.dealias = args.dealias.into();
     config.learned = load_network(args, mode, &config.periods_px, config.steps)?;
+    config.exposures = exposures_for(args);
+    config.saturation_level = args.saturation_level;
     Ok(config)
 }
 
@@ -401,6 +449,34 @@ fn print_summary(report: &ScanReport) {
                 .map_or("n/a".to_string(), |n| n.to_string()),
             f3(h.coverage)
         );
+        let e = &h.exposure;
+        let pct = |f: f64| format!("{:.2} %", 100.0 * f);
+        match &e.adaptive {
+            Some(a) => println!(
+                "head {} exposure: {}, {} images, adapted fringes at {:.3} x the standard exposure ({}); saturated {} -> {}, below the modulation floor {} -> {}; {} pixels lowered ({} placed by homography, {} unplaced)",
+                h.name,
+                e.kind,
+                e.images,
+                a.exposure_scale,
+                a.exposure_limited_by,
+                pct(a.saturated_fraction_before),
+                pct(e.saturated_fraction),
+                pct(a.below_modulation_floor_fraction_before),
+                pct(e.below_modulation_floor_fraction),
+                a.lowered_pixels,
+                a.mapped_by_homography_pixels,
+                a.unmapped_pixels
+            ),
+            None => println!(
+                "head {} exposure: {}, {} images at {:?} x the standard exposure; saturated {}, below the modulation floor {}",
+                h.name,
+                e.kind,
+                e.images,
+                e.exposure_scales,
+                pct(e.saturated_fraction),
+                pct(e.below_modulation_floor_fraction)
+            ),
+        }
         if let (Some(points), Some(pixels @ 1..)) = (h.overlap_points, h.overlap_pixels) {
             println!(
                 "head {} overlap (pixels lit by both projectors): {points} of {pixels} pixels reconstructed, RMSE {}",

@@ -1,0 +1,131 @@
+//! Each camera pixel's optimal level placed on the DMD: a projector pixel
+//! takes the lowest level any camera pixel seeing it asks for, pixels no
+//! one asks about stay at the full level, and the lowered areas are grown
+//! by a few pixels so a highlight edge the mapping misses by a pixel or two
+//! stays covered (seed 003's projector mask, filled with `L_opt`).
+
+use super::mapping::is_mapped;
+use crate::raster::Raster;
+
+/// Median distance in projector pixels between the positions of
+/// horizontally or vertically adjacent mapped camera pixels: how much of the
+/// DMD one camera pixel covers (1 when nothing is mapped).
+pub fn footprint_px(uv: &Raster<[f32; 2]>) -> f32 {
+    let (w, h) = uv.size();
+    let mut d = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let a = uv.data[y * w + x];
+            if !is_mapped(&a) {
+                continue;
+            }
+            for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                if nx < w && ny < h {
+                    let b = uv.data[ny * w + nx];
+                    if is_mapped(&b) {
+                        d.push(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt());
+                    }
+                }
+            }
+        }
+    }
+    if d.is_empty() {
+        return 1.0;
+    }
+    let k = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(k, f32::total_cmp);
+    m.max(1.0)
+}
+
+/// The DMD's level map: 1 everywhere, then each mapped camera pixel with a
+/// finite `levels` value writes the minimum of it over the square of side
+/// `footprint` around its `(u, v)`, then a minimum filter of radius
+/// `grow_px` (projector pixels).
+pub fn projector_levels(
+    uv: &Raster<[f32; 2]>,
+    levels: &Raster<f32>,
+    dmd_px: (u32, u32),
+    footprint: f32,
+    grow_px: usize,
+) -> Raster<f32> {
+    let (w, h) = (dmd_px.0 as usize, dmd_px.1 as usize);
+    let mut out = Raster::filled(w, h, 1.0f32);
+    let half = 0.5 * footprint.max(1.0);
+    for (q, &l) in uv.data.iter().zip(&levels.data) {
+        if !(l.is_finite() && is_mapped(q)) {
+            continue;
+        }
+        // The DMD pixels whose centres lie inside the footprint.
+        let x0 = (q[0] - half).ceil().max(0.0) as usize;
+        let x1 = ((q[0] + half).floor() as isize).min(w as isize - 1);
+        let y0 = (q[1] - half).ceil().max(0.0) as usize;
+        let y1 = ((q[1] + half).floor() as isize).min(h as isize - 1);
+        for y in y0 as isize..=y1 {
+            for x in x0 as isize..=x1 {
+                let v = &mut out.data[y as usize * w + x as usize];
+                *v = v.min(l);
+            }
+        }
+    }
+    min_filter(&mut out, grow_px);
+    out
+}
+
+/// Separable minimum filter of radius `r` (a (2r+1) square), edges clamped.
+fn min_filter(r: &mut Raster<f32>, radius: usize) {
+    if radius == 0 {
+        return;
+    }
+    let (w, h) = r.size();
+    let mut line = Vec::new();
+    for y in 0..h {
+        line.clear();
+        line.extend_from_slice(&r.data[y * w..(y + 1) * w]);
+        for x in 0..w {
+            let lo = x.saturating_sub(radius);
+            let hi = (x + radius).min(w - 1);
+            r.data[y * w + x] = line[lo..=hi].iter().copied().fold(f32::INFINITY, f32::min);
+        }
+    }
+    for x in 0..w {
+        line.clear();
+        line.extend((0..h).map(|y| r.data[y * w + x]));
+        for y in 0..h {
+            let lo = y.saturating_sub(radius);
+            let hi = (y + radius).min(h - 1);
+            r.data[y * w + x] = line[lo..=hi].iter().copied().fold(f32::INFINITY, f32::min);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::adaptive::mapping::UNMAPPED;
+
+    #[test]
+    fn lowest_request_wins_and_is_grown() {
+        // Two camera pixels asking for levels at nearby DMD positions, one
+        // unmapped, one with no request.
+        let uv =
+            Raster::from_vec(4, 1, vec![[5.0, 5.0], [6.0, 5.0], UNMAPPED, [15.0, 2.0]]).unwrap();
+        let levels = Raster::from_vec(4, 1, vec![0.4, 0.2, 0.1, f32::NAN]).unwrap();
+        let out = projector_levels(&uv, &levels, (20, 10), 1.0, 0);
+        assert_eq!(*out.at(5, 5), 0.4);
+        assert_eq!(*out.at(6, 5), 0.2);
+        assert_eq!(*out.at(15, 2), 1.0);
+        assert_eq!(out.data.iter().filter(|&&v| v < 1.0).count(), 2);
+        let grown = projector_levels(&uv, &levels, (20, 10), 1.0, 2);
+        assert_eq!(*grown.at(5, 5), 0.2);
+        assert_eq!(*grown.at(8, 7), 0.2);
+        assert_eq!(*grown.at(9, 5), 1.0);
+        assert_eq!(*grown.at(3, 3), 0.4);
+    }
+
+    #[test]
+    fn footprint_is_the_median_neighbour_distance() {
+        let uv = Raster::from_fn(10, 10, |x, y| [2.0 * x as f32, 2.0 * y as f32]);
+        assert_eq!(footprint_px(&uv), 2.0);
+        assert_eq!(footprint_px(&Raster::filled(3, 3, UNMAPPED)), 1.0);
+    }
+}

@@ -1,0 +1,277 @@
+//! How a head's fringes are exposed, and what the exposure left: in the
+//! sequential mode saturated pixels are masked (a clipped sample bends the
+//! decoded phase, so a pixel with one is never reconstructed), a multi-exposure capture's fringe sets
+//! are reconstructed one by one and each pixel taken from its best set, and
+//! the figures say how many pixels saturated or fell below the modulation
+//! floor.
+
+use crate::adaptive::exposure::ExposureChoice;
+use crate::adaptive::hdr::{HdrParams, HdrStats};
+use crate::raster::Raster;
+use crate::reconstruct::{ReconstructError, Reconstruction, Reconstructor};
+use crate::unwrap::PixelStatus;
+
+/// How each head's fringes are exposed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Exposures {
+    /// One fringe set at the standard exposure.
+    Single,
+    /// The fringe set at each of these exposure scales (units of the
+    /// standard exposure), each pixel taken from the set where it decoded
+    /// with the largest modulation without saturating: the usual
+    /// multi-exposure high-dynamic-range scan.
+    Multi(Vec<f64>),
+    /// Adaptive projection (seed 003): grey floods and one full-intensity
+    /// fringe set, then fringes whose level is chosen per projector pixel,
+    /// at an exposure chosen for the view ([`crate::adaptive`]).
+    AdaptiveHdr(HdrParams),
+}
+
+impl Exposures {
+    /// For reports: `single`, `multi-exposure` or `adaptive-hdr`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Exposures::Single => "single",
+            Exposures::Multi(_) => "multi-exposure",
+            Exposures::AdaptiveHdr(_) => "adaptive-hdr",
+        }
+    }
+}
+
+/// What a head's exposure left, in camera pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExposureFigures {
+    /// Camera images the head took (preliminaries included).
+    pub images: usize,
+    /// Exposure scale of each fringe set reconstructed.
+    pub scales: Vec<f64>,
+    /// Pixels with a saturated sample in every fringe set (masked in the
+    /// sequential mode; in the simultaneous modes, where the overlap sees
+    /// both projectors, the separation takes the frames as they are).
+    pub saturated_px: usize,
+    /// Pixels below the modulation floor (saturated pixels not counted).
+    pub below_floor_px: usize,
+    /// Camera pixels.
+    pub pixels: usize,
+    /// Adaptive projection: what it found and chose.
+    pub adaptive: Option<AdaptiveFigures>,
+}
+
+/// What the adaptive capture measured before it adapted, and chose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdaptiveFigures {
+    /// The adapted fringes' exposure.
+    pub exposure: ExposureChoice,
+    /// The adaptation's pixel counts.
+    pub stats: HdrStats,
+    /// Pixels saturated in the full-intensity fringe set.
+    pub before_saturated_px: usize,
+    /// Pixels below the modulation floor in it (saturated ones not counted).
+    pub before_below_floor_px: usize,
+}
+
+/// Warns when a head lost more than 0.1 % of its pixels to saturation, and
+/// when adaptive projection met pixels it could not hold or place.
+pub fn warn(
+    head: &str,
+    saturated: &[bool],
+    adaptive: Option<&HdrStats>,
+    warnings: &mut Vec<String>,
+) {
+    let lost = saturated.iter().filter(|&&s| s).count();
+    if lost * 1000 > saturated.len() {
+        warnings.push(format!(
+            "head {head}: {lost} pixels ({:.2} %) saturated in the fringes and are masked{}",
+            100.0 * lost as f64 / saturated.len() as f64,
+            if adaptive.is_some() {
+                ""
+            } else {
+                "; --adaptive hdr or --exposures recover them"
+            }
+        ));
+    }
+    if let Some(a) = adaptive {
+        if a.saturates_at_lowest_px > 0 || a.cannot_hold_px > 0 {
+            warnings.push(format!(
+                "head {head}: adaptive projection: {} pixels saturate even at the lowest lit flood and {} cannot be held under the target at the chosen exposure; they get the lowest usable level and are masked where they still saturate (a shorter standard exposure or a lower projector power would hold them)",
+                a.saturates_at_lowest_px, a.cannot_hold_px
+            ));
+        }
+        if a.unmapped_px > 0 {
+            warnings.push(format!(
+                "head {head}: adaptive projection could not place {} of the {} pixels to lower on the projector (no phase and no usable homography around them); their projector area stays at full level",
+                a.unmapped_px, a.lowered_px
+            ));
+        }
+    }
+}
+
+/// Pixels with a sample at or above `level` in any of `frames` (a NaN
+/// sample counts too: it cannot be decoded either).
+pub fn saturated_pixels(frames: &[Raster<f32>], level: f32) -> Vec<bool> {
+    let n = frames.first().map_or(0, |f| f.data.len());
+    let mut out = vec![false; n];
+    for f in frames {
+        for (o, &v) in out.iter_mut().zip(&f.data) {
+            *o |= v >= level || v.is_nan();
+        }
+    }
+    out
+}
+
+/// The modulation a pixel needs to be reconstructed: the configured floor,
+/// or the one under which its fringe orders are too noisy to count,
+/// whichever is higher.
+pub fn modulation_floor(rc: &Reconstructor) -> f32 {
+    rc.config().min_modulation.max(rc.min_reliable_modulation())
+}
+
+/// Pixels whose modulation is under `floor` and that are not in `saturated`.
+pub fn below_floor(recon: &Reconstruction, floor: f32, saturated: &[bool]) -> usize {
+    recon
+        .pixels
+        .modulation
+        .iter()
+        .zip(saturated)
+        .filter(|(&m, &s)| !s && (m.is_nan() || m < floor))
+        .count()
+}
+
+/// One head's fringe sets reconstructed: with `mask`, each set's pixels
+/// that saturated in its `raw` frames are masked (frames zeroed there);
+/// each set is reconstructed, and with several sets each pixel taken from
+/// the set where it is valid with the largest modulation. Returns the
+/// result and, per pixel, whether it saturated in every set.
+pub fn reconstruct_sets(
+    rc: &Reconstructor,
+    raw_sets: &[&[Raster<f32>]],
+    frame_sets: &mut [&mut [Raster<f32>]],
+    saturation: f32,
+    mask: bool,
+) -> Result<(Reconstruction, Vec<bool>), ReconstructError> {
+    if frame_sets.is_empty() {
+        // No frames at all: the reconstruction says how many it needed.
+        return rc.reconstruct::<f32>(&[], None).map(|r| (r, Vec::new()));
+    }
+    let mut recons = Vec::with_capacity(frame_sets.len());
+    let mut always_saturated: Option<Vec<bool>> = None;
+    for (raw, frames) in raw_sets.iter().zip(frame_sets.iter_mut()) {
+        let saturated = saturated_pixels(raw, saturation);
+        if mask {
+            crate::dealias::mask_pixels(frames, &saturated);
+        }
+        let refs: Vec<&Raster<f32>> = frames.iter().collect();
+        recons.push(rc.reconstruct(&refs, None)?);
+        always_saturated = Some(match always_saturated {
+            None => saturated,
+            Some(all) => all.iter().zip(&saturated).map(|(a, b)| *a && *b).collect(),
+        });
+    }
+    let always_saturated = always_saturated.unwrap_or_default();
+    if recons.len() == 1 {
+        return Ok((recons.pop().expect("one"), always_saturated));
+    }
+    Ok((merge_best(rc, recons), always_saturated))
+}
+
+/// Per pixel, the valid result with the largest modulation among `recons`
+/// (the first one's values where none is valid); the cloud rebuilt.
+fn merge_best(rc: &Reconstructor, mut recons: Vec<Reconstruction>) -> Reconstruction {
+    let mut maps = std::mem::take(&mut recons[0].pixels);
+    for other in &recons[1..] {
+        for i in 0..maps.len() {
+            let theirs = other.pixels.status[i] == PixelStatus::Valid;
+            let ours = maps.status[i] == PixelStatus::Valid;
+            if theirs && (!ours || other.pixels.modulation[i] > maps.modulation[i]) {
+                maps.copy_pixel(&other.pixels, i);
+            }
+        }
+    }
+    rc.from_maps(maps)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::PinholeModel;
+    use crate::reconstruct::ReconstructConfig;
+
+    #[test]
+    fn saturated_and_nan_pixels_are_found() {
+        let a = Raster::from_vec(3, 1, vec![0.2, 0.999, 0.5]).unwrap();
+        let b = Raster::from_vec(3, 1, vec![0.3, 0.1, f32::NAN]).unwrap();
+        assert_eq!(saturated_pixels(&[a, b], 0.995), [false, true, true]);
+        assert!(saturated_pixels(&[], 0.995).is_empty());
+    }
+
+    #[test]
+    fn each_pixel_comes_from_its_best_unsaturated_exposure() {
+        let (camera, projector) = crate::synth::stereo_rig(
+            PinholeModel::ideal(64, 48, 160.0),
+            PinholeModel::ideal(228, 285, 450.0),
+            0.15,
+            0.5,
+        );
+        let periods = [9.0, 10.0, 11.0];
+        let truth = crate::synth::trace(&crate::synth::two_spheres(0.5, 0.6), &camera, &projector);
+        let render = |gain: f32| {
+            let light = crate::synth::Lighting {
+                ambient: 0.02,
+                gain,
+                noise_sigma: 0.002,
+            };
+            crate::synth::render_fringe_set(&truth, &periods, 4, true, &light, 3)
+                .into_iter()
+                .map(|mut f| {
+                    f.data.iter_mut().for_each(|v| *v = v.min(1.0));
+                    f
+                })
+                .collect::<Vec<_>>()
+        };
+        let mut config = ReconstructConfig::new(periods.to_vec());
+        config.noise_sigma = 0.002;
+        let rc = Reconstructor::new(&camera, &projector, config).unwrap();
+        // Long exposure: the brightest parts clip; short: nothing clips but
+        // everything is 4x dimmer.
+        let (long, short) = (render(1.6), render(0.4));
+        let raw = [long.clone(), short.clone()];
+        let alone: Vec<Reconstruction> = raw
+            .iter()
+            .map(|set| {
+                let mut frames = set.clone();
+                let mut sets: Vec<&mut [Raster<f32>]> = vec![&mut frames];
+                reconstruct_sets(&rc, &[set.as_slice()], &mut sets, 0.995, true)
+                    .unwrap()
+                    .0
+            })
+            .collect();
+        let (mut l, mut s) = (long, short);
+        let mut sets: Vec<&mut [Raster<f32>]> = vec![&mut l, &mut s];
+        let raw_refs: Vec<&[Raster<f32>]> = raw.iter().map(|r| r.as_slice()).collect();
+        let (out, saturated) = reconstruct_sets(&rc, &raw_refs, &mut sets, 0.995, true).unwrap();
+        let clipped_long = saturated_pixels(&raw[0], 0.995);
+        assert!(clipped_long.iter().filter(|&&c| c).count() > 50);
+        // Nothing clips in the short set, so nothing is lost in both.
+        assert!(saturated.iter().all(|&s| !s));
+        let valid = |r: &Reconstruction, i: usize| r.pixels.status[i] == PixelStatus::Valid;
+        let n = out.pixels.len();
+        for (i, &clipped) in clipped_long.iter().enumerate() {
+            if clipped {
+                assert!(!valid(&alone[0], i), "pixel {i} clipped yet valid");
+            }
+            // The merge keeps every pixel either set decoded, from the one
+            // with the larger modulation.
+            assert_eq!(valid(&out, i), valid(&alone[0], i) || valid(&alone[1], i));
+            if valid(&out, i) {
+                let best = (0..2)
+                    .filter(|&k| valid(&alone[k], i))
+                    .map(|k| alone[k].pixels.modulation[i])
+                    .fold(0.0, f32::max);
+                assert_eq!(out.pixels.modulation[i], best);
+            }
+        }
+        let count = |r: &Reconstruction| (0..n).filter(|&i| valid(r, i)).count();
+        assert!(count(&out) > count(&alone[0]));
+        assert_eq!(out.cloud.len(), count(&out));
+    }
+}
