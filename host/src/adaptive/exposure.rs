@@ -8,6 +8,8 @@
 //! algorithm; one exposure for the view is a one-dimensional search, done
 //! exhaustively on a fine grid).
 
+use rayon::prelude::*;
+
 use super::response::{optimal_level, Response, ResponseStatus};
 
 /// What decided the chosen exposure.
@@ -20,6 +22,8 @@ pub enum ExposureLimit {
     Longest,
     /// The shortest exposure the plan allows.
     Shortest,
+    /// The range holds one exposure (seed 003's fixed exposure).
+    Fixed,
 }
 
 impl ExposureLimit {
@@ -29,6 +33,7 @@ impl ExposureLimit {
             ExposureLimit::MostPixels => "the most pixels over the modulation floor",
             ExposureLimit::Longest => "the longest exposure (more would still gain)",
             ExposureLimit::Shortest => "the shortest exposure",
+            ExposureLimit::Fixed => "fixed",
         }
     }
 }
@@ -92,10 +97,9 @@ pub fn choose_exposure(
     let (shortest, longest) = rule.range;
     let n = rule.candidates.max(2);
     let ratio = (longest / shortest).powf(1.0 / (n - 1) as f64);
-    let mut best = (1.0f64, 0usize);
-    if !lit.is_empty() {
-        best = (shortest, 0);
-        for k in 0..n {
+    let counts: Vec<(f64, usize)> = (0..n)
+        .into_par_iter()
+        .map(|k| {
             let scale = shortest * ratio.powi(k as i32);
             let s = scale as f32;
             let decoding = lit
@@ -105,9 +109,14 @@ pub fn choose_exposure(
                         .is_some_and(|l| contrast * s * b1 * l * 0.5 >= floor)
                 })
                 .count();
-            if decoding > best.1 {
-                best = (scale, decoding);
-            }
+            (scale, decoding)
+        })
+        .collect();
+    // The first (shortest) of the best.
+    let mut best = (shortest, 0usize);
+    for &(scale, decoding) in &counts {
+        if decoding > best.1 {
+            best = (scale, decoding);
         }
     }
     let (mut scale, decoding) = best;
@@ -115,7 +124,9 @@ pub fn choose_exposure(
         // No exposure decodes anything: keep the floods'.
         scale = 1.0f64.clamp(shortest, longest);
     }
-    let limit = if decoding == 0 {
+    let limit = if shortest == longest {
+        ExposureLimit::Fixed
+    } else if decoding == 0 {
         ExposureLimit::MostPixels
     } else if scale >= longest * (1.0 - 1e-9) {
         ExposureLimit::Longest

@@ -40,6 +40,11 @@ pub struct HdrParams {
     pub max_homography_rms_px: f64,
     /// Growth of the lowered areas on the DMD, projector pixels.
     pub grow_px: usize,
+    /// After the adapted scan: DMD pixels around each pixel's position
+    /// looked at for a level step ([`super::edges`]).
+    pub step_radius_px: usize,
+    /// Largest ratio of the levels there before the pixel is unreliable.
+    pub max_step_ratio: f32,
 }
 
 impl Default for HdrParams {
@@ -47,7 +52,8 @@ impl Default for HdrParams {
     /// full scale, lowest usable level 0.08 (20 grey levels of swing),
     /// 96 candidate exposures between the plan's shortest and longest,
     /// rings of 3 px, homographies to 3 projector px, lowered areas grown
-    /// by 3 px.
+    /// by 3 px; pixels whose level varies by more than 1.5x within 2 DMD px
+    /// unreliable.
     fn default() -> Self {
         HdrParams {
             levels: FLOOD_LEVELS.to_vec(),
@@ -66,6 +72,8 @@ impl Default for HdrParams {
             ring_px: 3,
             max_homography_rms_px: 3.0,
             grow_px: 3,
+            step_radius_px: 2,
+            max_step_ratio: 1.5,
         }
     }
 }
@@ -78,7 +86,7 @@ impl HdrParams {
                 levels: self.levels.clone(),
             });
         }
-        let checks: [(&'static str, f64, bool, &'static str); 5] = [
+        let checks: [(&'static str, f64, bool, &'static str); 6] = [
             (
                 "saturation",
                 f64::from(self.saturation),
@@ -102,6 +110,12 @@ impl HdrParams {
                 f64::from(self.fringe_floor),
                 (0.0..1.0).contains(&self.fringe_floor),
                 "[0, 1)",
+            ),
+            (
+                "max_step_ratio",
+                f64::from(self.max_step_ratio),
+                self.max_step_ratio >= 1.0,
+                ">= 1",
             ),
             (
                 "exposure range",

@@ -7,6 +7,7 @@
 //! around it (seed 003, eq. 17: the contour just outside the cluster).
 
 use nalgebra::{Matrix3, Point3, SMatrix, SymmetricEigen, Vector3};
+use rayon::prelude::*;
 
 use crate::calibration::PinholeModel;
 use crate::raster::Raster;
@@ -26,6 +27,7 @@ pub fn is_mapped(uv: &[f32; 2]) -> bool {
 /// the point falls outside the DMD.
 pub fn from_points(pixels: &PixelMaps, projector: &PinholeModel) -> Raster<[f32; 2]> {
     let data = (0..pixels.len())
+        .into_par_iter()
         .map(|i| {
             if pixels.status[i] != PixelStatus::Valid {
                 return UNMAPPED;

@@ -14,12 +14,14 @@
 //!   saturated clusters: (u, v) from a homography fitted to their unsaturated ring
 //! L_opt at (u, v) ──projector_map::projector_levels──> L_opt per DMD pixel (min, grown)
 //! ──fringes::adapted_fringes──> A = (L_opt + L_min) / 2, B = (L_opt - L_min) / 2
+//! adapted scan ──edges::mark_level_steps──> pixels over a level step unreliable
 //! ```
 //!
 //! [`hdr::adapt`] runs the whole step (floods and the full set's
 //! reconstruction in, patterns out); `crate::scan::capture` runs the
 //! exposures around it: 7 + 12 + 12 = 31 images for three periods x 4 steps.
 
+pub mod edges;
 pub mod exposure;
 pub mod fringes;
 pub mod hdr;

@@ -40,7 +40,10 @@ pub fn footprint_px(uv: &Raster<[f32; 2]>) -> f32 {
 /// The DMD's level map: 1 everywhere, then each mapped camera pixel with a
 /// finite `levels` value writes the minimum of it over the square of side
 /// `footprint` around its `(u, v)`, then a minimum filter of radius
-/// `grow_px` (projector pixels).
+/// `grow_px` (projector pixels), then a box blur of radius `grow_px - 1`
+/// (a camera pixel integrates a few DMD pixels, and a level that steps
+/// inside them bends its fringe). The blur's window stays inside the grown
+/// area around each request, so no requested pixel gets more than it asked.
 pub fn projector_levels(
     uv: &Raster<[f32; 2]>,
     levels: &Raster<f32>,
@@ -68,7 +71,36 @@ pub fn projector_levels(
         }
     }
     min_filter(&mut out, grow_px);
+    box_blur(&mut out, grow_px.saturating_sub(1));
     out
+}
+
+/// Separable box blur of radius `r`, edges clamped: the level then varies
+/// smoothly across the few DMD pixels a camera pixel integrates.
+fn box_blur(r: &mut Raster<f32>, radius: usize) {
+    if radius == 0 {
+        return;
+    }
+    let (w, h) = r.size();
+    let mut line = Vec::new();
+    for y in 0..h {
+        line.clear();
+        line.extend_from_slice(&r.data[y * w..(y + 1) * w]);
+        for x in 0..w {
+            let lo = x.saturating_sub(radius);
+            let hi = (x + radius).min(w - 1);
+            r.data[y * w + x] = line[lo..=hi].iter().sum::<f32>() / (hi - lo + 1) as f32;
+        }
+    }
+    for x in 0..w {
+        line.clear();
+        line.extend((0..h).map(|y| r.data[y * w + x]));
+        for y in 0..h {
+            let lo = y.saturating_sub(radius);
+            let hi = (y + radius).min(h - 1);
+            r.data[y * w + x] = line[lo..=hi].iter().sum::<f32>() / (hi - lo + 1) as f32;
+        }
+    }
 }
 
 /// Separable minimum filter of radius `r` (a (2r+1) square), edges clamped.
@@ -115,11 +147,19 @@ mod tests {
         assert_eq!(*out.at(6, 5), 0.2);
         assert_eq!(*out.at(15, 2), 1.0);
         assert_eq!(out.data.iter().filter(|&&v| v < 1.0).count(), 2);
-        let grown = projector_levels(&uv, &levels, (20, 10), 1.0, 2);
+        // Grown by one (no blur): a 3x3 square around each request.
+        let grown = projector_levels(&uv, &levels, (20, 10), 1.0, 1);
         assert_eq!(*grown.at(5, 5), 0.2);
-        assert_eq!(*grown.at(8, 7), 0.2);
-        assert_eq!(*grown.at(9, 5), 1.0);
-        assert_eq!(*grown.at(3, 3), 0.4);
+        assert_eq!(*grown.at(7, 6), 0.2);
+        assert_eq!(*grown.at(4, 4), 0.4);
+        assert_eq!(*grown.at(8, 5), 1.0);
+        // Grown by three, blurred by two: the requests keep their levels,
+        // the edges ramp up to the full level.
+        let smooth = projector_levels(&uv, &levels, (20, 10), 1.0, 3);
+        assert!(*smooth.at(6, 5) <= 0.2 + 1e-6 && *smooth.at(5, 5) <= 0.2 + 1e-6);
+        let ramp: Vec<f32> = (6..13).map(|x| *smooth.at(x, 5)).collect();
+        assert!(ramp.windows(2).all(|p| p[0] <= p[1]), "{ramp:?}");
+        assert!(ramp[6] == 1.0 && ramp[3] < 1.0, "{ramp:?}");
     }
 
     #[test]

@@ -105,6 +105,9 @@ pub struct AdaptiveReport {
     pub unmapped_pixels: usize,
     /// Saturated clusters mapped by homography.
     pub clusters: usize,
+    /// Pixels of the adapted scan left out for straddling a step of the DMD
+    /// level map (their fringe is bent).
+    pub level_step_pixels: usize,
 }
 
 /// One camera's de-aliasing of the simultaneous mode's overlap.

@@ -241,7 +241,7 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
             rows.push((
                 "adaptive projection".into(),
                 format!(
-                    "before: saturated {}, below the floor {}; exposure limited by {}; {} pixels lowered ({} by their phase, {} by homography over {} clusters, {} unplaced); {} saturate at the lowest flood, {} cannot be held",
+                    "before: saturated {}, below the floor {}; exposure limited by {}; {} pixels lowered ({} by their phase, {} by homography over {} clusters, {} unplaced); {} saturate at the lowest flood, {} cannot be held; {} left out over a level step",
                     pct(a.saturated_fraction_before),
                     pct(a.below_modulation_floor_fraction_before),
                     a.exposure_limited_by,
@@ -251,7 +251,8 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
                     a.clusters,
                     a.unmapped_pixels,
                     a.saturates_at_lowest_pixels,
-                    a.cannot_hold_pixels
+                    a.cannot_hold_pixels,
+                    a.level_step_pixels
                 ),
             ));
         }

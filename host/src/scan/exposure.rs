@@ -68,6 +68,9 @@ pub struct AdaptiveFigures {
     pub before_saturated_px: usize,
     /// Pixels below the modulation floor in it (saturated ones not counted).
     pub before_below_floor_px: usize,
+    /// Pixels of the adapted scan marked unreliable for straddling a step
+    /// of the DMD level map.
+    pub level_step_px: usize,
 }
 
 /// Warns when a head lost more than 0.1 % of its pixels to saturation, and

@@ -567,12 +567,27 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             head: head_name,
             source,
         })?;
-        tracing::info!(head = head_name, points = r.cloud.len(), "reconstructed");
         let record = if matches!(config.exposures, Exposures::AdaptiveHdr(_)) {
             adaptive.next()
         } else {
             None
         };
+        let mut level_step_px = 0;
+        let r = match (&record, &config.exposures) {
+            (Some(rec), Exposures::AdaptiveHdr(params)) => {
+                let mut maps = r.pixels;
+                level_step_px = crate::adaptive::edges::mark_level_steps(
+                    &mut maps,
+                    &rec.adaptation.projector_levels,
+                    &calibration.heads[h].projector,
+                    params.step_radius_px,
+                    params.max_step_ratio,
+                );
+                rc.from_maps(maps)
+            }
+            _ => r,
+        };
+        tracing::info!(head = head_name, points = r.cloud.len(), "reconstructed");
         if config.mode == Mode::Sequential {
             exposure::warn(
                 head_name,
@@ -597,6 +612,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
                     stats: a.adaptation.stats,
                     before_saturated_px: a.before_saturated_px,
                     before_below_floor_px: a.before_below_floor_px,
+                    level_step_px,
                 }),
             },
             record,

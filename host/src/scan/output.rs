@@ -276,6 +276,7 @@ fn exposure_report(h: &super::HeadResult, kind: &super::Exposures) -> ExposureRe
             mapped_by_homography_pixels: a.stats.mapped_by_homography_px,
             unmapped_pixels: a.stats.unmapped_px,
             clusters: a.stats.clusters,
+            level_step_pixels: a.level_step_px,
         }
     });
     ExposureReport {
