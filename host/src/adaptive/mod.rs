@@ -21,6 +21,7 @@
 //! reconstruction in, patterns out); `crate::scan::capture` runs the
 //! exposures around it: 7 + 12 + 12 = 31 images for three periods x 4 steps.
 
+pub mod colour;
 pub mod edges;
 pub mod exposure;
 pub mod fringes;

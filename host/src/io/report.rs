@@ -75,8 +75,9 @@ pub struct AdaptiveReport {
     /// The preliminary images: the grey floods, in projection order
     /// (written as `flood_{head}_{i}.png`), and one full-intensity fringe set.
     pub flood_files: Vec<String>,
-    /// Grey level of each flood.
-    pub flood_levels: Vec<f32>,
+    /// Each flood's red, green and blue levels (a grey flood has all three
+    /// equal; the colour mode's are grey 0, grey 100 of 255, red, green, blue).
+    pub flood_colours: Vec<[f32; 3]>,
     /// The adapted patterns as sent to the DMD (`adapted_{head}_{i}.png`).
     pub pattern_files: Vec<String>,
     /// The chosen exposure of the adapted fringes, in standard exposures.

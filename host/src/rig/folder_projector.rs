@@ -19,7 +19,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{Projector, RigError};
+use super::{Led, Projector, RigError, WHITE};
 use crate::calibration::RigCalibration;
 use crate::io::images::{list_images, load_gray, save_gray_png, ImageError};
 use crate::raster::Raster;
@@ -84,6 +84,32 @@ impl FolderProjector {
             head,
             heads: self.heads.len(),
         })
+    }
+
+    /// Writes the set (as [`Self::write`]) and, for a coloured one, the LEDs
+    /// of each pattern as `pattern_leds.json` (`[[r, g, b], ...]` in trigger
+    /// order) for the GUI's pattern LUT; a white set leaves no such file.
+    fn write_with_leds(
+        &self,
+        head: usize,
+        dir: &Path,
+        patterns: &[Raster<f32>],
+        leds: &[Led],
+    ) -> Result<(), RigError> {
+        self.write(head, dir, patterns)?;
+        let path = dir.join(LED_FILE);
+        let folder = |source| RigError::Folder {
+            path: path.clone(),
+            source,
+        };
+        if leds.iter().all(|l| *l == WHITE) {
+            return match std::fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(folder(e)),
+                _ => Ok(()),
+            };
+        }
+        let json = serde_json::to_vec(leds).map_err(|e| folder(std::io::Error::other(e)))?;
+        crate::io::write_atomically(&path, |w| w.write_all(&json)).map_err(folder)
     }
 
     fn write(&self, head: usize, dir: &Path, patterns: &[Raster<f32>]) -> Result<(), RigError> {
@@ -162,6 +188,9 @@ impl FolderProjector {
     }
 }
 
+/// The LEDs of a coloured set, beside its patterns.
+pub const LED_FILE: &str = "pattern_leds.json";
+
 /// `pattern_007.png` for trigger 7.
 pub fn pattern_file_name(k: usize) -> String {
     format!("pattern_{k:03}.png")
@@ -183,6 +212,15 @@ impl Projector for FolderProjector {
     }
 
     fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError> {
+        self.load_coloured_sequence(head, patterns, &vec![WHITE; patterns.len()])
+    }
+
+    fn load_coloured_sequence(
+        &mut self,
+        head: usize,
+        patterns: &[Raster<f32>],
+        leds: &[Led],
+    ) -> Result<(), RigError> {
         let expected = self.dmd_size_px(head)?;
         if let Some(p) = patterns
             .iter()
@@ -194,9 +232,14 @@ impl Projector for FolderProjector {
                 got: p.size(),
             });
         }
+        let white = leds.iter().all(|l| *l == WHITE);
+        if leds.len() != patterns.len() || (!white && self.delivery == PatternDelivery::Preloaded) {
+            // A pre-loaded set's LEDs cannot be checked from its PNGs.
+            return Err(RigError::NoLedControl { head });
+        }
         let dir = self.head_dir(head)?;
         match self.delivery {
-            PatternDelivery::Write => self.write(head, &dir, patterns),
+            PatternDelivery::Write => self.write_with_leds(head, &dir, patterns, leds),
             PatternDelivery::Preloaded => self.check_preloaded(head, &dir, patterns),
         }
     }
@@ -267,6 +310,31 @@ mod tests {
             .load_sequence(0, &[Raster::filled(4, 2, 0.0)])
             .unwrap_err();
         assert!(matches!(err, RigError::PatternSize { .. }), "{err}");
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn a_coloured_set_writes_its_leds_and_a_white_one_removes_them() {
+        let root = std::env::temp_dir().join(format!("slscan-folder-leds-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let leds = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let mut p = projector(&root, PatternDelivery::Write);
+        p.load_coloured_sequence(0, &set(3), &leds).unwrap();
+        let file = root.join("A").join(LED_FILE);
+        let back: Vec<[f32; 3]> = serde_json::from_slice(&std::fs::read(&file).unwrap()).unwrap();
+        assert_eq!(back, leds);
+        // LEDs that do not pair with the patterns, and colour for a
+        // pre-loaded set, are refused.
+        assert!(matches!(
+            p.load_coloured_sequence(0, &set(2), &leds),
+            Err(RigError::NoLedControl { head: 0 })
+        ));
+        assert!(matches!(
+            projector(&root, PatternDelivery::Preloaded).load_coloured_sequence(0, &set(3), &leds),
+            Err(RigError::NoLedControl { head: 0 })
+        ));
+        p.load_sequence(0, &set(3)).unwrap();
+        assert!(!file.exists());
         std::fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -53,6 +53,15 @@ impl<S: FrameSource> Projector for HardwareRig<S> {
     fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError> {
         self.projector.load_sequence(head, patterns)
     }
+
+    fn load_coloured_sequence(
+        &mut self,
+        head: usize,
+        patterns: &[Raster<f32>],
+        leds: &[super::Led],
+    ) -> Result<(), RigError> {
+        self.projector.load_coloured_sequence(head, patterns, leds)
+    }
 }
 
 impl<S: FrameSource> Camera for HardwareRig<S> {

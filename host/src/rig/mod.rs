@@ -180,6 +180,15 @@ pub enum RigError {
         /// What failed (names the file).
         source: crate::io::images::ImageError,
     },
+    /// Coloured patterns for a projector that lights every pattern white
+    /// (or LEDs that do not pair with the patterns one to one).
+    #[error(
+        "head {head}: this projector cannot light patterns in colour (its patterns are white)"
+    )]
+    NoLedControl {
+        /// Head index.
+        head: usize,
+    },
     /// A device back end failed in a way of its own (the simulator's pty or
     /// renderer, a vendor library).
     #[error("{what}")]
@@ -198,13 +207,34 @@ pub trait Board {
     fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError>;
 }
 
+/// The LEDs lighting a pattern: drive of the red, green and blue LED in
+/// [0, 1] (a DLPC350 / DLPC900 pattern LUT selects them per pattern).
+pub type Led = [f32; 3];
+
+/// All three LEDs: a white pattern.
+pub const WHITE: Led = [1.0; 3];
+
 /// The DMD projectors: a pattern table per head, advanced by each trigger.
 pub trait Projector {
     /// DMD size of head `head`'s projector (width, height).
     fn dmd_size_px(&self, head: usize) -> Result<(u32, u32), RigError>;
     /// Loads the patterns (values in [0, 1]) the triggers of head `head`
-    /// step through, in trigger order.
+    /// step through, in trigger order, lit white.
     fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError>;
+    /// Loads patterns each lit by its own LEDs (`leds[i]` lights
+    /// `patterns[i]`). A projector without LED control takes white ones only.
+    fn load_coloured_sequence(
+        &mut self,
+        head: usize,
+        patterns: &[Raster<f32>],
+        leds: &[Led],
+    ) -> Result<(), RigError> {
+        if leds.len() == patterns.len() && leds.iter().all(|l| *l == WHITE) {
+            self.load_sequence(head, patterns)
+        } else {
+            Err(RigError::NoLedControl { head })
+        }
+    }
 }
 
 /// The triggered cameras.

@@ -25,16 +25,30 @@ pub enum Exposures {
     /// fringe set, then fringes whose level is chosen per projector pixel,
     /// at an exposure chosen for the view ([`crate::adaptive`]).
     AdaptiveHdr(HdrParams),
+    /// Adaptive colour and intensity projection (seed 004): five floods,
+    /// Gray-code matching, then 3-step fringes whose colour and level are
+    /// chosen per projector pixel, at an exposure chosen for the view.
+    AdaptiveColour(crate::adaptive::colour::ColourParams),
 }
 
 impl Exposures {
-    /// For reports: `single`, `multi-exposure` or `adaptive-hdr`.
+    /// For reports: `single`, `multi-exposure`, `adaptive-hdr` or
+    /// `adaptive-colour`.
     pub fn name(&self) -> &'static str {
         match self {
             Exposures::Single => "single",
             Exposures::Multi(_) => "multi-exposure",
             Exposures::AdaptiveHdr(_) => "adaptive-hdr",
+            Exposures::AdaptiveColour(_) => "adaptive-colour",
         }
+    }
+
+    /// Whether this is one of the adaptive kinds.
+    pub fn is_adaptive(&self) -> bool {
+        matches!(
+            self,
+            Exposures::AdaptiveHdr(_) | Exposures::AdaptiveColour(_)
+        )
     }
 }
 

@@ -447,6 +447,7 @@ pub fn check_before_capture(
             }
         }
         Exposures::AdaptiveHdr(params) => params.validate()?,
+        Exposures::AdaptiveColour(params) => params.validate()?,
     }
     let periods = config.periods_px.len();
     if config.mode == Mode::Simultaneous
@@ -567,32 +568,36 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             head: head_name,
             source,
         })?;
-        let record = if matches!(config.exposures, Exposures::AdaptiveHdr(_)) {
+        let record = if config.exposures.is_adaptive() {
             adaptive.next()
         } else {
             None
         };
         let mut level_step_px = 0;
-        let r = match (&record, &config.exposures) {
-            (Some(rec), Exposures::AdaptiveHdr(params)) => {
+        let r = match &record {
+            Some(rec) => {
+                let steps = match &config.exposures {
+                    Exposures::AdaptiveHdr(params) => params.clone(),
+                    _ => crate::adaptive::hdr::HdrParams::default(),
+                };
                 let mut maps = r.pixels;
                 level_step_px = crate::adaptive::edges::mark_level_steps(
                     &mut maps,
-                    &rec.adaptation.projector_levels,
+                    &rec.level_map,
                     &calibration.heads[h].projector,
-                    params.step_radius_px,
-                    params.max_step_ratio,
+                    steps.step_radius_px,
+                    steps.max_step_ratio,
                 );
                 rc.from_maps(maps)
             }
-            _ => r,
+            None => r,
         };
         tracing::info!(head = head_name, points = r.cloud.len(), "reconstructed");
         if config.mode == Mode::Sequential {
             exposure::warn(
                 head_name,
                 &saturated,
-                record.as_ref().map(|r| &r.adaptation.stats),
+                record.as_ref().map(|r| &r.stats),
                 &mut warnings,
             );
         }
@@ -608,8 +613,8 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
                 ),
                 pixels: saturated.len(),
                 adaptive: record.as_ref().map(|a| exposure::AdaptiveFigures {
-                    exposure: a.adaptation.exposure,
-                    stats: a.adaptation.stats,
+                    exposure: a.exposure,
+                    stats: a.stats,
                     before_saturated_px: a.before_saturated_px,
                     before_below_floor_px: a.before_below_floor_px,
                     level_step_px,

@@ -252,16 +252,17 @@ fn exposure_report(h: &super::HeadResult, kind: &super::Exposures) -> ExposureRe
     let share = |px: usize| px as f64 / e.pixels.max(1) as f64;
     let tag = h.name.to_lowercase();
     let adaptive = e.adaptive.zip(h.adaptive.as_ref()).map(|(a, record)| {
-        let levels = match kind {
-            super::Exposures::AdaptiveHdr(p) => p.levels.clone(),
+        let colours = match kind {
+            super::Exposures::AdaptiveHdr(p) => p.levels.iter().map(|&l| [l; 3]).collect(),
+            super::Exposures::AdaptiveColour(_) => crate::adaptive::colour::FLOODS.to_vec(),
             _ => Vec::new(),
         };
         AdaptiveReport {
             flood_files: (0..record.floods.len())
                 .map(|i| flood_file(&tag, i))
                 .collect(),
-            flood_levels: levels,
-            pattern_files: (0..record.adaptation.patterns.len())
+            flood_colours: colours,
+            pattern_files: (0..record.patterns.len())
                 .map(|i| adapted_file(&tag, i))
                 .collect(),
             exposure_scale: a.exposure.scale,
@@ -299,7 +300,7 @@ fn write_adaptive_images(
     for (i, f) in record.floods.iter().enumerate().take(MAX_FLOODS) {
         save_gray_png(&dir.join(flood_file(tag, i)), f, true)?;
     }
-    for (i, p) in record.adaptation.patterns.iter().enumerate() {
+    for (i, p) in record.patterns.iter().enumerate() {
         save_gray_png(&dir.join(adapted_file(tag, i)), p, false)?;
     }
     Ok(())

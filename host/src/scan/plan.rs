@@ -143,18 +143,38 @@ pub fn one_pattern_per_scaled_exposure(
     patterns: usize,
     scale: f64,
 ) -> Result<ScanPlan, PlanBuildError> {
+    patterns_per_scaled_exposure(heads, patterns, 1, scale)
+}
+
+/// Gap between two patterns shown in one exposure (the DMD's next trigger).
+const SLOT_GAP_NS: u32 = 500_000;
+
+/// `exposures` exposures of `slots` patterns each (pattern indices in
+/// order, each on the mirrors for `scale` standard display times, 0.5 ms
+/// apart), the exposure `scale` standard exposures longer for each pattern
+/// beyond the first: an RGB projector shows a colour pattern as its red,
+/// green and blue planes one after another inside one camera exposure.
+pub fn patterns_per_scaled_exposure(
+    heads: HeadSet,
+    exposures: usize,
+    slots: usize,
+    scale: f64,
+) -> Result<ScanPlan, PlanBuildError> {
     if !(MIN_EXPOSURE_SCALE..=MAX_EXPOSURE_SCALE).contains(&scale) {
         return Err(PlanBuildError::ExposureScale { scale });
     }
-    let exposure_ns = (f64::from(SLOW_EXPOSURE_NS) * scale).round() as u32;
+    let slots = slots.max(1);
     let display_ns = (f64::from(SLOW_DISPLAY_NS) * scale).round() as u32;
+    let extra_ns = (slots as u32 - 1) * (display_ns + SLOT_GAP_NS);
+    let exposure_ns = (f64::from(SLOW_EXPOSURE_NS) * scale).round() as u32 + extra_ns;
     // A longer exposure stretches the frame period by as much (the camera's
     // read-out and re-arm time after the exposure stays the same).
     let frame_ns = SLOW_FRAME_NS.max(exposure_ns + (SLOW_FRAME_NS - SLOW_EXPOSURE_NS));
-    if patterns > MAX_EXPOSURES {
+    let patterns = exposures;
+    if patterns > MAX_EXPOSURES || patterns * slots > protocol::limits::MAX_SLOTS_PER_CYCLE {
         return Err(PlanBuildError::TooManyPatterns {
-            patterns,
-            max: MAX_EXPOSURES,
+            patterns: patterns * slots,
+            max: MAX_EXPOSURES.min(protocol::limits::MAX_SLOTS_PER_CYCLE / slots),
         });
     }
     let wiring = [
@@ -170,16 +190,18 @@ pub fn one_pattern_per_scaled_exposure(
         }
     })?;
     for k in 0..patterns {
-        let slot = PatternSlot {
-            pattern_index: k as u16,
-            offset_ns: SLOW_SLOT_OFFSET_NS,
-            display_ns,
-        };
+        let shown: Vec<PatternSlot> = (0..slots)
+            .map(|j| PatternSlot {
+                pattern_index: (k * slots + j) as u16,
+                offset_ns: SLOW_SLOT_OFFSET_NS + j as u32 * (display_ns + SLOT_GAP_NS),
+                display_ns,
+            })
+            .collect();
         plan.push_exposure(
             heads,
             CYCLE_LEAD_NS + k as u32 * frame_ns,
             exposure_ns,
-            &[slot],
+            &shown,
         )
         .map_err(|_| PlanBuildError::TooManyPatterns {
             patterns,
@@ -233,6 +255,19 @@ mod tests {
             one_pattern_per_scaled_exposure(HeadSet::A, 64, MAX_EXPOSURE_SCALE),
             Err(PlanBuildError::ExposureScale { .. })
         ));
+    }
+
+    #[test]
+    fn three_patterns_per_exposure_validate() {
+        for scale in [0.25, 1.0, 2.5] {
+            let plan = patterns_per_scaled_exposure(HeadSet::A, 34, 3, scale).unwrap();
+            assert_eq!(plan.exposures.len(), 34);
+            assert_eq!(plan.slots.len(), 102);
+            assert_eq!(plan.slots[5].pattern_index, 5);
+            plan.validate(&BoardLimits::STM32G474)
+                .unwrap_or_else(|err| panic!("scale {scale}: {err:?}"));
+        }
+        assert!(patterns_per_scaled_exposure(HeadSet::A, 86, 3, 1.0).is_err());
     }
 
     #[test]

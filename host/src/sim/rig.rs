@@ -22,7 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::board::{ClientConfig, ScanOutcome};
 use crate::raster::Raster;
 use crate::rig::serial_board::SerialBoard;
-use crate::rig::{slots_per_frame, Board, Camera, Projector, RigError};
+use crate::rig::{slots_per_frame, Board, Camera, Led, Projector, RigError, WHITE};
 
 /// How to build a [`SimRig`].
 #[derive(Clone, Debug)]
@@ -45,6 +45,8 @@ pub struct SimRig {
     board: SimBoardHandle,
     twin: Arc<TwinRig>,
     sequences: Vec<Vec<Arc<Pattern>>>,
+    /// Per head, the LEDs of each pattern of `sequences`.
+    leds: Vec<Vec<Led>>,
     sensor: SensorModel,
     rng: ChaCha8Rng,
     /// Per head, per camera trigger of the last plan: patterns its exposure holds.
@@ -66,6 +68,7 @@ impl SimRig {
             board_link,
             board,
             sequences: vec![Vec::new(); twin.rig().projectors.len()],
+            leds: vec![Vec::new(); twin.rig().projectors.len()],
             twin,
             sensor: config.sensor,
             rng: ChaCha8Rng::seed_from_u64(config.noise_seed),
@@ -94,7 +97,7 @@ impl SimRig {
             .map(|p| {
                 let shown = match (sim_heads.get(p), self.sequences.get(p)) {
                     (Some(head), Some(seq)) if !seq.is_empty() => {
-                        timeline(head.projector.displayed(), seq)
+                        timeline(head.projector.displayed(), seq, &self.leds[p])
                     }
                     _ => Vec::new(),
                 };
@@ -105,16 +108,20 @@ impl SimRig {
 }
 
 /// The displayed log of one DMD as twin `Shown` items (virtual ns -> s);
-/// the DMD steps through its table once per accepted trigger.
-fn timeline(displayed: &[Displayed], sequence: &[Arc<Pattern>]) -> Vec<Shown> {
+/// the DMD steps through its table (and its LED table, `leds`, one per
+/// pattern) once per accepted trigger.
+fn timeline(displayed: &[Displayed], sequence: &[Arc<Pattern>], leds: &[Led]) -> Vec<Shown> {
     displayed
         .iter()
-        .map(|d| Shown {
-            pattern: sequence[d.pattern_index as usize % sequence.len()].clone(),
-            start_s: d.start_ns as f64 * 1e-9,
-            end_s: d.end_ns as f64 * 1e-9,
-            led: [1.0; 3],
-            display: Display::Steady,
+        .map(|d| {
+            let k = d.pattern_index as usize % sequence.len();
+            Shown {
+                pattern: sequence[k].clone(),
+                start_s: d.start_ns as f64 * 1e-9,
+                end_s: d.end_ns as f64 * 1e-9,
+                led: leds.get(k).copied().unwrap_or(WHITE),
+                display: Display::Steady,
+            }
         })
         .collect()
 }
@@ -166,7 +173,19 @@ impl Projector for SimRig {
     }
 
     fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError> {
+        self.load_coloured_sequence(head, patterns, &vec![WHITE; patterns.len()])
+    }
+
+    fn load_coloured_sequence(
+        &mut self,
+        head: usize,
+        patterns: &[Raster<f32>],
+        leds: &[Led],
+    ) -> Result<(), RigError> {
         let expected = self.dmd_size_px(head)?;
+        if leds.len() != patterns.len() {
+            return Err(RigError::NoLedControl { head });
+        }
         let mut seq = Vec::with_capacity(patterns.len());
         for p in patterns {
             if (p.width, p.height) != (expected.0 as usize, expected.1 as usize) {
@@ -183,6 +202,7 @@ impl Projector for SimRig {
             }));
         }
         self.sequences[head] = seq;
+        self.leds[head] = leds.to_vec();
         Ok(())
     }
 }

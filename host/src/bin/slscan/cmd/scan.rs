@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
+use slscan::adaptive::colour::{ColourChoice, ColourParams};
 use slscan::adaptive::hdr::HdrParams;
 use slscan::board::ClientConfig;
 use slscan::calibration::{read_rig, RigCalibration};
@@ -146,12 +147,26 @@ enum AdaptiveArg {
     /// lowers the projector where the surface saturates; dark parts stay
     /// as starved as in a plain scan).
     HdrFixedExposure,
+    /// Seed 004 for coloured and reflective parts: 5 floods (grey 0 and
+    /// 100, red, green, blue), Gray-code + pixel-shift matching (68
+    /// images), then 3-step fringes in each surface's own colour at a level
+    /// chosen per projector pixel and one exposure; each image is three
+    /// sub-frames, one per LED.
+    Colour,
+    /// The same with white at the chosen level instead of the surface's
+    /// colour (on a mono camera, the most modulation a level can give).
+    ColourWhite,
 }
 
 /// `--adaptive` / `--exposures`: how each head's fringes are exposed.
 fn exposures_for(args: &Args) -> Exposures {
     match (&args.adaptive, &args.exposures) {
         (Some(AdaptiveArg::Hdr), _) => Exposures::AdaptiveHdr(HdrParams::default()),
+        (Some(AdaptiveArg::Colour), _) => Exposures::AdaptiveColour(ColourParams::default()),
+        (Some(AdaptiveArg::ColourWhite), _) => Exposures::AdaptiveColour(ColourParams {
+            choice: ColourChoice::White,
+            ..ColourParams::default()
+        }),
         (Some(AdaptiveArg::HdrFixedExposure), _) => {
             let mut params = HdrParams::default();
             params.rule.range = (1.0, 1.0);
