@@ -3,13 +3,18 @@
 //! exposure and 12 adapted DMD patterns out, at a 640x480 camera with a
 //! 1280x800 DMD and at 3072x2048 with a 1920x1080 DMD. The scene is a
 //! plane with a saturated highlight disc (a quarter of the pixels lowered,
-//! a tenth mapped by homography); stage times from separate calls.
+//! a tenth mapped by homography); stage times from separate calls. Then
+//! seed 004's colour step at the same sizes: the Gray-code matching decode
+//! and the adaptation to 9 colour images of three planes.
 //!
 //! `cargo bench -p slscan --bench adaptive`
 
 use std::time::Instant;
 
 use nalgebra::Point3;
+use slscan::adaptive::colour::{
+    adapt_colour, decode_matching, matching_patterns, ColourParams, ColourResponse,
+};
 use slscan::adaptive::fringes::adapted_fringes;
 use slscan::adaptive::hdr::{adapt, HdrParams, PatternTarget, FLOOD_LEVELS};
 use slscan::adaptive::mapping::{fill_clusters, from_points};
@@ -64,6 +69,37 @@ fn scene(
         }
     }
     (floods, maps, projector)
+}
+
+/// Seed 004's inputs for the same plane: the five floods' response (a red
+/// half and a white half) and the matching frames a one-to-one view of
+/// the DMD's centre would give.
+fn colour_inputs(
+    camera_px: (usize, usize),
+    dmd_px: (u32, u32),
+    block_px: u32,
+) -> (ColourResponse, Vec<Raster<f32>>) {
+    let (w, h) = camera_px;
+    let response = ColourResponse {
+        offset: Raster::filled(w, h, 0.03),
+        band_gain: [
+            Raster::filled(w, h, 0.3),
+            Raster::from_fn(w, h, |x, _| if x < w / 2 { 0.02 } else { 0.3 }),
+            Raster::from_fn(w, h, |x, _| if x < w / 2 { 0.02 } else { 0.3 }),
+        ],
+        white_gain: Raster::from_fn(w, h, |x, _| if x < w / 2 { 0.34 } else { 0.9 }),
+    };
+    let frames = matching_patterns(dmd_px, block_px)
+        .iter()
+        .map(|p| {
+            Raster::from_fn(w, h, |x, y| {
+                let u = (x * dmd_px.0 as usize / w).min(dmd_px.0 as usize - 1);
+                let v = (y * dmd_px.1 as usize / h).min(dmd_px.1 as usize - 1);
+                0.03 + 0.6 * p.data[v * dmd_px.0 as usize + u]
+            })
+        })
+        .collect();
+    (response, frames)
 }
 
 fn ms(t: Instant) -> f64 {
@@ -130,6 +166,26 @@ fn main() {
             dmd_px.1,
             a.stats.lowered_px,
             a.stats.mapped_by_homography_px
+        );
+    }
+    println!();
+    println!("seed 004's colour step (68 matching images + 5 floods in, 9 colour images of 3 planes out)");
+    println!("| camera | DMD | matching decode | adaptation (exposure, levels, 27 planes) |");
+    println!("|---|---|---|---|");
+    let colour = ColourParams::default();
+    for (camera_px, dmd_px) in [((640, 480), (1280, 800)), ((3072, 2048), (1920, 1080))] {
+        let (response, frames) = colour_inputs(camera_px, dmd_px, colour.block_px);
+        let t = Instant::now();
+        let uv = decode_matching(&frames, &response, dmd_px, &colour).expect("decodes");
+        let decode_ms = ms(t);
+        drop(frames);
+        let t = Instant::now();
+        let a = adapt_colour(&response, &uv, dmd_px, &periods, 3, 0.15, &colour).expect("adapts");
+        let adapt_ms = ms(t);
+        assert_eq!(a.patterns.len(), 27);
+        println!(
+            "| {}x{} | {}x{} | {decode_ms:.0} ms | {adapt_ms:.0} ms |",
+            camera_px.0, camera_px.1, dmd_px.0, dmd_px.1
         );
     }
 }
