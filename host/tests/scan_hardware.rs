@@ -11,13 +11,14 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
+use slscan::adaptive::colour::ColourParams;
 use slscan::adaptive::hdr::HdrParams;
 use slscan::board::ClientConfig;
 use slscan::calibration::{write_rig, RigCalibration};
 use slscan::dealias::DealiasMethod;
 use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{
-    pattern_file_name, FolderProjector, FolderProjectorHead, PatternDelivery,
+    pattern_file_name, FolderProjector, FolderProjectorHead, PatternDelivery, LED_FILE,
 };
 use slscan::rig::hardware::HardwareRig;
 use slscan::rig::serial_board::SerialBoard;
@@ -251,6 +252,55 @@ fn adaptive_projection_runs_its_three_board_runs_through_the_hardware_path() {
     let dir = folders.patterns.join("A");
     assert!(dir.join(pattern_file_name(11)).is_file());
     assert!(!dir.join(pattern_file_name(12)).exists());
+    let _ = std::fs::remove_dir_all(&folders.root);
+}
+
+#[test]
+fn adaptive_colour_projection_hands_its_leds_to_the_dmd_tool() {
+    // Head A alone, seed 004's chain: five floods and the matching set as
+    // three-LED images, then the coloured fringes; the DMD tool lights each
+    // pattern with the LEDs of pattern_leds.json.
+    let (result, folders) = with_vendor_tools("adaptive-colour", Fault::None, |port, folders| {
+        let (twin, calibration) = twin();
+        let one = RigCalibration::single(calibration.heads[0].clone());
+        let mut rig = hardware_rig(port, folders, Duration::from_secs(30), &one)?;
+        let truth = ground_truth(twin, 1).expect("twin truth");
+        let mut config = config(Mode::Sequential);
+        config.exposures = Exposures::AdaptiveColour(ColourParams::default());
+        run_on_rig(
+            &mut rig,
+            &one,
+            "head A of the twin truth as a rig file",
+            Some(&truth),
+            &config,
+            &mut |_| {},
+        )
+    });
+    let result = result.expect("scan runs");
+    let head = &result.heads[0];
+    let t = head.truth.as_ref().expect("measured");
+    eprintln!(
+        "adaptive colour, one head: RMSE {:.1} um (predicted {:.1} um), coverage {:.3}",
+        t.accuracy.rmse_m * 1e6,
+        t.accuracy.predicted_rms_m * 1e6,
+        t.coverage
+    );
+    assert_eq!(head.exposure.images, 5 + 68 + 9);
+    assert!(
+        t.accuracy.rmse_m < 1.15 * t.accuracy.predicted_rms_m,
+        "{:?}",
+        t.accuracy
+    );
+    assert_eq!(t.accuracy.outliers, 0);
+    assert!(t.accuracy.own_coverage > 0.9, "{:?}", t.accuracy);
+    // The last set handed over: 27 planes (9 images x red, green, blue).
+    let dir = folders.patterns.join("A");
+    assert!(dir.join(pattern_file_name(26)).is_file());
+    assert!(!dir.join(pattern_file_name(27)).exists());
+    let leds: Vec<[f32; 3]> =
+        serde_json::from_slice(&std::fs::read(dir.join(LED_FILE)).unwrap()).unwrap();
+    assert_eq!(leds.len(), 27);
+    assert_eq!(leds[4], [0.0, 1.0, 0.0]);
     let _ = std::fs::remove_dir_all(&folders.root);
 }
 

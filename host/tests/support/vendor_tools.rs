@@ -21,7 +21,7 @@ use rand_chacha::ChaCha8Rng;
 use slscan::calibration::RigCalibration;
 use slscan::io::images::{load_gray, save_gray_png};
 use slscan::raster::Raster;
-use slscan::rig::folder_projector::pattern_file_name;
+use slscan::rig::folder_projector::{pattern_file_name, LED_FILE};
 use slscan::scan::ScanConfig;
 use slscan::sim::scan::sim_sensor;
 use slscan::sim::truth as twin_truth;
@@ -195,6 +195,12 @@ impl DmdGui {
         start_ns: u64,
         end_ns: u64,
     ) -> ProjectorTimeline {
+        // The GUI loads each pattern's LEDs from the coloured set's table
+        // (white when there is none).
+        let leds: Vec<[f32; 3]> = std::fs::read(dir.join(LED_FILE))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .unwrap_or_default();
         let shown = displayed
             .iter()
             .filter(|d| d.end_ns > start_ns && d.start_ns < end_ns)
@@ -202,7 +208,10 @@ impl DmdGui {
                 pattern: self.pattern(&dir.join(pattern_file_name(d.pattern_index as usize))),
                 start_s: d.start_ns as f64 * 1e-9,
                 end_s: d.end_ns as f64 * 1e-9,
-                led: [1.0; 3],
+                led: leds
+                    .get(d.pattern_index as usize)
+                    .copied()
+                    .unwrap_or([1.0; 3]),
                 display: Display::Steady,
             })
             .collect();
