@@ -103,6 +103,29 @@ fn hardware_scan(
     })
 }
 
+/// Head A of the twin's rig as a one-head rig (the board triggers its
+/// camera and projector only, the folder camera reads A/ only), scanned with
+/// `config` and measured against the twin.
+fn one_head_hardware_scan(
+    name: &str,
+    config: &ScanConfig,
+) -> (Result<ScanResult, ScanError>, Folders) {
+    with_vendor_tools(name, Fault::None, |port, folders| {
+        let (twin, calibration) = twin();
+        let one = RigCalibration::single(calibration.heads[0].clone());
+        let mut rig = hardware_rig(port, folders, Duration::from_secs(30), &one)?;
+        let truth = ground_truth(twin, 1).expect("twin truth");
+        run_on_rig(
+            &mut rig,
+            &one,
+            "head A of the twin truth as a rig file",
+            Some(&truth),
+            config,
+            &mut |_| {},
+        )
+    })
+}
+
 /// Frames in order, each from its own trigger: per-head accuracy at the
 /// noise limit (a frame out of turn gives millimetres, see dual_head's
 /// off-by-one DMD table test) and the fused cloud covering more.
@@ -176,22 +199,7 @@ fn sequential_hardware_scan_reads_every_frame_in_order() {
 
 #[test]
 fn a_one_head_hardware_rig_scans_with_its_head_alone() {
-    // Head A of the twin's rig as a one-head rig: the board triggers its
-    // camera and projector only, the folder camera reads A/ only.
-    let (result, folders) = with_vendor_tools("one-head", Fault::None, |port, folders| {
-        let (twin, calibration) = twin();
-        let one = RigCalibration::single(calibration.heads[0].clone());
-        let mut rig = hardware_rig(port, folders, Duration::from_secs(30), &one)?;
-        let truth = ground_truth(twin, 1).expect("twin truth");
-        run_on_rig(
-            &mut rig,
-            &one,
-            "head A of the twin truth as a rig file",
-            Some(&truth),
-            &config(Mode::Sequential),
-            &mut |_| {},
-        )
-    });
+    let (result, folders) = one_head_hardware_scan("one-head", &config(Mode::Sequential));
     let result = result.expect("scan runs");
     assert_eq!(result.heads.len(), 1);
     let t = result.heads[0].truth.as_ref().expect("measured");
@@ -215,22 +223,9 @@ fn a_one_head_hardware_rig_scans_with_its_head_alone() {
 fn adaptive_projection_runs_its_three_board_runs_through_the_hardware_path() {
     // Head A alone: floods + the full set in one run, then the adapted set
     // (patterns written anew for the DMD GUI) at the exposure it chose.
-    let (result, folders) = with_vendor_tools("adaptive", Fault::None, |port, folders| {
-        let (twin, calibration) = twin();
-        let one = RigCalibration::single(calibration.heads[0].clone());
-        let mut rig = hardware_rig(port, folders, Duration::from_secs(30), &one)?;
-        let truth = ground_truth(twin, 1).expect("twin truth");
-        let mut config = config(Mode::Sequential);
-        config.exposures = Exposures::AdaptiveHdr(HdrParams::default());
-        run_on_rig(
-            &mut rig,
-            &one,
-            "head A of the twin truth as a rig file",
-            Some(&truth),
-            &config,
-            &mut |_| {},
-        )
-    });
+    let mut config = config(Mode::Sequential);
+    config.exposures = Exposures::AdaptiveHdr(HdrParams::default());
+    let (result, folders) = one_head_hardware_scan("adaptive", &config);
     let result = result.expect("scan runs");
     let head = &result.heads[0];
     let t = head.truth.as_ref().expect("measured");
@@ -260,22 +255,9 @@ fn adaptive_colour_projection_hands_its_leds_to_the_dmd_tool() {
     // Head A alone, seed 004's chain: five floods and the matching set as
     // three-LED images, then the coloured fringes; the DMD tool lights each
     // pattern with the LEDs of pattern_leds.json.
-    let (result, folders) = with_vendor_tools("adaptive-colour", Fault::None, |port, folders| {
-        let (twin, calibration) = twin();
-        let one = RigCalibration::single(calibration.heads[0].clone());
-        let mut rig = hardware_rig(port, folders, Duration::from_secs(30), &one)?;
-        let truth = ground_truth(twin, 1).expect("twin truth");
-        let mut config = config(Mode::Sequential);
-        config.exposures = Exposures::AdaptiveColour(ColourParams::default());
-        run_on_rig(
-            &mut rig,
-            &one,
-            "head A of the twin truth as a rig file",
-            Some(&truth),
-            &config,
-            &mut |_| {},
-        )
-    });
+    let mut config = config(Mode::Sequential);
+    config.exposures = Exposures::AdaptiveColour(ColourParams::default());
+    let (result, folders) = one_head_hardware_scan("adaptive-colour", &config);
     let result = result.expect("scan runs");
     let head = &result.heads[0];
     let t = head.truth.as_ref().expect("measured");

@@ -75,59 +75,41 @@ pub fn projector_levels(
     out
 }
 
-/// Separable box blur of radius `r`, edges clamped: the level then varies
-/// smoothly across the few DMD pixels a camera pixel integrates.
-fn box_blur(r: &mut Raster<f32>, radius: usize) {
-    if radius == 0 {
-        return;
-    }
-    let (w, h) = r.size();
-    let mut line = Vec::new();
-    for y in 0..h {
-        line.clear();
-        line.extend_from_slice(&r.data[y * w..(y + 1) * w]);
-        for x in 0..w {
-            let lo = x.saturating_sub(radius);
-            let hi = (x + radius).min(w - 1);
-            r.data[y * w + x] = line[lo..=hi].iter().sum::<f32>() / (hi - lo + 1) as f32;
-        }
-    }
-    for x in 0..w {
-        line.clear();
-        line.extend((0..h).map(|y| r.data[y * w + x]));
-        for y in 0..h {
-            let lo = y.saturating_sub(radius);
-            let hi = (y + radius).min(h - 1);
-            r.data[y * w + x] = line[lo..=hi].iter().sum::<f32>() / (hi - lo + 1) as f32;
-        }
-    }
+/// Separable minimum filter of radius `radius` (a (2r+1) square), edges clamped.
+fn min_filter(r: &mut Raster<f32>, radius: usize) {
+    separable(r, radius, |w| {
+        w.iter().copied().fold(f32::INFINITY, f32::min)
+    });
 }
 
-/// Separable minimum filter of radius `r` (a (2r+1) square), edges clamped.
-fn min_filter(r: &mut Raster<f32>, radius: usize) {
+/// Separable box blur of radius `radius`, edges clamped: the level then
+/// varies smoothly across the few DMD pixels a camera pixel integrates.
+fn box_blur(r: &mut Raster<f32>, radius: usize) {
+    separable(r, radius, |w| w.iter().sum::<f32>() / w.len() as f32);
+}
+
+/// Replaces each value by `reduce` of its window of radius `radius` along
+/// the rows, then along the columns (windows clamped at the edges).
+fn separable(r: &mut Raster<f32>, radius: usize, reduce: impl Fn(&[f32]) -> f32) {
     if radius == 0 {
         return;
     }
     let (w, h) = r.size();
     let mut line = Vec::new();
-    for y in 0..h {
-        line.clear();
-        line.extend_from_slice(&r.data[y * w..(y + 1) * w]);
-        for x in 0..w {
-            let lo = x.saturating_sub(radius);
-            let hi = (x + radius).min(w - 1);
-            r.data[y * w + x] = line[lo..=hi].iter().copied().fold(f32::INFINITY, f32::min);
-        }
-    }
-    for x in 0..w {
-        line.clear();
-        line.extend((0..h).map(|y| r.data[y * w + x]));
-        for y in 0..h {
-            let lo = y.saturating_sub(radius);
-            let hi = (y + radius).min(h - 1);
-            r.data[y * w + x] = line[lo..=hi].iter().copied().fold(f32::INFINITY, f32::min);
-        }
-    }
+    let mut pass =
+        |r: &mut Raster<f32>, len: usize, lines: usize, at: &dyn Fn(usize, usize) -> usize| {
+            for l in 0..lines {
+                line.clear();
+                line.extend((0..len).map(|k| r.data[at(l, k)]));
+                for k in 0..len {
+                    let lo = k.saturating_sub(radius);
+                    let hi = (k + radius).min(len - 1);
+                    r.data[at(l, k)] = reduce(&line[lo..=hi]);
+                }
+            }
+        };
+    pass(r, w, h, &|y, x| y * w + x);
+    pass(r, h, w, &|x, y| y * w + x);
 }
 
 #[cfg(test)]

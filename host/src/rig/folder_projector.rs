@@ -221,19 +221,9 @@ impl Projector for FolderProjector {
         patterns: &[Raster<f32>],
         leds: &[Led],
     ) -> Result<(), RigError> {
-        let expected = self.dmd_size_px(head)?;
-        if let Some(p) = patterns
-            .iter()
-            .find(|p| p.size() != (expected.0 as usize, expected.1 as usize))
-        {
-            return Err(RigError::PatternSize {
-                head,
-                expected,
-                got: p.size(),
-            });
-        }
+        super::check_sequence(head, self.dmd_size_px(head)?, patterns, leds)?;
         let white = leds.iter().all(|l| *l == WHITE);
-        if leds.len() != patterns.len() || (!white && self.delivery == PatternDelivery::Preloaded) {
+        if !white && self.delivery == PatternDelivery::Preloaded {
             // A pre-loaded set's LEDs cannot be checked from its PNGs.
             return Err(RigError::NoLedControl { head });
         }

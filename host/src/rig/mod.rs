@@ -247,6 +247,30 @@ pub trait Camera {
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError>;
 }
 
+/// Checks a coloured sequence before a projector takes it: every pattern
+/// the DMD's size (`expected`), one LED setting per pattern.
+pub fn check_sequence(
+    head: usize,
+    expected: (u32, u32),
+    patterns: &[Raster<f32>],
+    leds: &[Led],
+) -> Result<(), RigError> {
+    if let Some(p) = patterns
+        .iter()
+        .find(|p| p.size() != (expected.0 as usize, expected.1 as usize))
+    {
+        return Err(RigError::PatternSize {
+            head,
+            expected,
+            got: p.size(),
+        });
+    }
+    if leds.len() != patterns.len() {
+        return Err(RigError::NoLedControl { head });
+    }
+    Ok(())
+}
+
 /// Camera triggers per head of one run of `plan` (cycle exposures of that
 /// head times the repeat count), for heads `0..heads`.
 pub fn frames_per_head(plan: &ScanPlan, heads: usize) -> Vec<usize> {

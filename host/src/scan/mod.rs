@@ -487,6 +487,80 @@ pub(crate) fn head_reconstructor(
     })
 }
 
+/// Head `h`'s reconstruction from its captured fringe sets: each set
+/// reconstructed (in the sequential mode its saturated pixels masked),
+/// several merged per pixel, an adaptive scan's pixels over a step of its
+/// DMD level map left out ([`crate::adaptive::edges`]); with what the
+/// exposure left, and warnings for lost pixels.
+fn reconstruct_head(
+    calibration: &RigCalibration,
+    config: &ScanConfig,
+    captured: &mut capture::Captured,
+    h: usize,
+    record: Option<&capture::AdaptiveRecord>,
+    warnings: &mut Vec<String>,
+) -> Result<(Reconstruction, ExposureFigures), ScanError> {
+    let head = HEAD_NAMES[h];
+    let rc = head_reconstructor(
+        calibration,
+        h,
+        config,
+        captured.steps,
+        captured.noise_factor,
+    )?;
+    let sets = captured.set_scales[h].len().max(1);
+    let raw = &captured.raw[h];
+    let raw_sets: Vec<&[Raster<f32>]> = raw.chunks(raw.len().div_ceil(sets).max(1)).collect();
+    let frames = &mut captured.frames[h];
+    let per_set = frames.len().div_ceil(sets).max(1);
+    let mut frame_sets: Vec<&mut [Raster<f32>]> = frames.chunks_mut(per_set).collect();
+    let (r, saturated) = exposure::reconstruct_sets(
+        &rc,
+        &raw_sets,
+        &mut frame_sets,
+        config.saturation_level,
+        config.mode == Mode::Sequential,
+    )
+    .map_err(|source| ScanError::Reconstruct { head, source })?;
+    let mut level_step_px = 0;
+    let r = match record {
+        Some(rec) => {
+            let guard = match &config.exposures {
+                Exposures::AdaptiveHdr(params) => params.clone(),
+                _ => crate::adaptive::hdr::HdrParams::default(),
+            };
+            let mut maps = r.pixels;
+            level_step_px = crate::adaptive::edges::mark_level_steps(
+                &mut maps,
+                &rec.level_map,
+                &calibration.heads[h].projector,
+                guard.step_radius_px,
+                guard.max_step_ratio,
+            );
+            rc.from_maps(maps)
+        }
+        None => r,
+    };
+    if config.mode == Mode::Sequential {
+        exposure::warn(head, &saturated, record.map(|r| &r.stats), warnings);
+    }
+    let figures = ExposureFigures {
+        images: captured.images[h],
+        scales: captured.set_scales[h].clone(),
+        saturated_px: saturated.iter().filter(|&&s| s).count(),
+        below_floor_px: exposure::below_floor(&r, exposure::modulation_floor(&rc), &saturated),
+        pixels: saturated.len(),
+        adaptive: record.map(|a| exposure::AdaptiveFigures {
+            exposure: a.exposure,
+            stats: a.stats,
+            before_saturated_px: a.before_saturated_px,
+            before_below_floor_px: a.before_below_floor_px,
+            level_step_px,
+        }),
+    };
+    Ok((r, figures))
+}
+
 /// Wall-clock time per stage, logged as each ends.
 pub(crate) struct Clock {
     last: Instant,
@@ -544,84 +618,26 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     });
     let mut exposures = Vec::new();
     let mut adaptive = std::mem::take(&mut captured.adaptive).into_iter();
-    for (h, (head_frames, raw)) in captured.frames.iter_mut().zip(&captured.raw).enumerate() {
-        let head_name = HEAD_NAMES[h];
-        let rc = head_reconstructor(
-            calibration,
-            h,
-            config,
-            captured.steps,
-            captured.noise_factor,
-        )?;
-        let sets = captured.set_scales[h].len().max(1);
-        let raw_sets: Vec<&[Raster<f32>]> = raw.chunks(raw.len().div_ceil(sets).max(1)).collect();
-        let per_set = head_frames.len().div_ceil(sets).max(1);
-        let mut frame_sets: Vec<&mut [Raster<f32>]> = head_frames.chunks_mut(per_set).collect();
-        let (r, saturated) = exposure::reconstruct_sets(
-            &rc,
-            &raw_sets,
-            &mut frame_sets,
-            config.saturation_level,
-            config.mode == Mode::Sequential,
-        )
-        .map_err(|source| ScanError::Reconstruct {
-            head: head_name,
-            source,
-        })?;
+    for (h, head) in HEAD_NAMES
+        .into_iter()
+        .enumerate()
+        .take(captured.frames.len())
+    {
         let record = if config.exposures.is_adaptive() {
             adaptive.next()
         } else {
             None
         };
-        let mut level_step_px = 0;
-        let r = match &record {
-            Some(rec) => {
-                let steps = match &config.exposures {
-                    Exposures::AdaptiveHdr(params) => params.clone(),
-                    _ => crate::adaptive::hdr::HdrParams::default(),
-                };
-                let mut maps = r.pixels;
-                level_step_px = crate::adaptive::edges::mark_level_steps(
-                    &mut maps,
-                    &rec.level_map,
-                    &calibration.heads[h].projector,
-                    steps.step_radius_px,
-                    steps.max_step_ratio,
-                );
-                rc.from_maps(maps)
-            }
-            None => r,
-        };
-        tracing::info!(head = head_name, points = r.cloud.len(), "reconstructed");
-        if config.mode == Mode::Sequential {
-            exposure::warn(
-                head_name,
-                &saturated,
-                record.as_ref().map(|r| &r.stats),
-                &mut warnings,
-            );
-        }
-        exposures.push((
-            ExposureFigures {
-                images: captured.images[h],
-                scales: captured.set_scales[h].clone(),
-                saturated_px: saturated.iter().filter(|&&s| s).count(),
-                below_floor_px: exposure::below_floor(
-                    &r,
-                    exposure::modulation_floor(&rc),
-                    &saturated,
-                ),
-                pixels: saturated.len(),
-                adaptive: record.as_ref().map(|a| exposure::AdaptiveFigures {
-                    exposure: a.exposure,
-                    stats: a.stats,
-                    before_saturated_px: a.before_saturated_px,
-                    before_below_floor_px: a.before_below_floor_px,
-                    level_step_px,
-                }),
-            },
-            record,
-        ));
+        let (r, figures) = reconstruct_head(
+            calibration,
+            config,
+            &mut captured,
+            h,
+            record.as_ref(),
+            &mut warnings,
+        )?;
+        tracing::info!(head, points = r.cloud.len(), "reconstructed");
+        exposures.push((figures, record));
         recons.push(r);
         progress(Progress::Step);
     }

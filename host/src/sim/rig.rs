@@ -22,7 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::board::{ClientConfig, ScanOutcome};
 use crate::raster::Raster;
 use crate::rig::serial_board::SerialBoard;
-use crate::rig::{slots_per_frame, Board, Camera, Led, Projector, RigError, WHITE};
+use crate::rig::{check_sequence, slots_per_frame, Board, Camera, Led, Projector, RigError, WHITE};
 
 /// How to build a [`SimRig`].
 #[derive(Clone, Debug)]
@@ -183,18 +183,9 @@ impl Projector for SimRig {
         leds: &[Led],
     ) -> Result<(), RigError> {
         let expected = self.dmd_size_px(head)?;
-        if leds.len() != patterns.len() {
-            return Err(RigError::NoLedControl { head });
-        }
+        check_sequence(head, expected, patterns, leds)?;
         let mut seq = Vec::with_capacity(patterns.len());
         for p in patterns {
-            if (p.width, p.height) != (expected.0 as usize, expected.1 as usize) {
-                return Err(RigError::PatternSize {
-                    head,
-                    expected,
-                    got: p.size(),
-                });
-            }
             seq.push(Arc::new(Pattern {
                 width: expected.0,
                 height: expected.1,
