@@ -20,6 +20,7 @@
 //! [`output::write_scan`] writes it (every file via a temporary and a
 //! rename, `scan.ply` last), so a failed scan writes no `scan.ply`.
 
+mod adaptive_capture;
 pub mod aliasing;
 pub mod calibration_file;
 pub mod capture;
@@ -30,6 +31,7 @@ pub mod measure;
 pub mod metrics;
 pub mod output;
 pub mod plan;
+mod reconstruct_head;
 pub mod self_check;
 pub mod spheres;
 pub mod truth;
@@ -43,11 +45,13 @@ use crate::fusion::{FusionError, IcpResult};
 use crate::patterns::three_pitch_periods_px;
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
-use crate::reconstruct::{ReconstructConfig, ReconstructError, Reconstruction, Reconstructor};
+use crate::reconstruct::{ReconstructError, Reconstruction};
 use crate::rig::{Board, Camera, Projector, RigError};
 use clouds::transformed;
 pub use exposure::{ExposureFigures, Exposures};
 use metrics::PixelAccuracy;
+pub(crate) use reconstruct_head::head_reconstructor;
+use reconstruct_head::reconstruct_head;
 pub use truth::{CameraTruth, GroundTruth};
 
 /// Head names in plan order.
@@ -85,7 +89,7 @@ pub struct ScanConfig {
     /// noise prediction and order checks assume).
     pub noise_sigma: f32,
     /// Share of that noise's variance that is shot noise (see
-    /// [`ReconstructConfig::shot_noise_share`]): each point's predicted
+    /// [`crate::reconstruct::ReconstructConfig::shot_noise_share`]): each point's predicted
     /// sigma then follows its pixel's own level.
     pub shot_noise_share: f32,
     /// Timeouts of the board client.
@@ -465,102 +469,6 @@ pub fn check_before_capture(
     Ok(())
 }
 
-/// The reconstruction of head `h` with the scan's periods and noise, for
-/// frames of `steps` shifts whose phase noise is `noise_factor` times a raw
-/// frame's.
-pub(crate) fn head_reconstructor(
-    calibration: &RigCalibration,
-    h: usize,
-    config: &ScanConfig,
-    steps: usize,
-    noise_factor: f32,
-) -> Result<Reconstructor, ScanError> {
-    let mut rc_config = ReconstructConfig::new(config.periods_px.clone());
-    rc_config.steps = steps;
-    rc_config.noise_sigma = config.noise_sigma * noise_factor;
-    rc_config.shot_noise_share = config.shot_noise_share;
-    Reconstructor::from_head(&calibration.heads[h], rc_config).map_err(|source| {
-        ScanError::Reconstruct {
-            head: HEAD_NAMES[h],
-            source,
-        }
-    })
-}
-
-/// Head `h`'s reconstruction from its captured fringe sets: each set
-/// reconstructed (in the sequential mode its saturated pixels masked),
-/// several merged per pixel, an adaptive scan's pixels over a step of its
-/// DMD level map left out ([`crate::adaptive::edges`]); with what the
-/// exposure left, and warnings for lost pixels.
-fn reconstruct_head(
-    calibration: &RigCalibration,
-    config: &ScanConfig,
-    captured: &mut capture::Captured,
-    h: usize,
-    record: Option<&capture::AdaptiveRecord>,
-    warnings: &mut Vec<String>,
-) -> Result<(Reconstruction, ExposureFigures), ScanError> {
-    let head = HEAD_NAMES[h];
-    let rc = head_reconstructor(
-        calibration,
-        h,
-        config,
-        captured.steps,
-        captured.noise_factor,
-    )?;
-    let sets = captured.set_scales[h].len().max(1);
-    let raw = &captured.raw[h];
-    let raw_sets: Vec<&[Raster<f32>]> = raw.chunks(raw.len().div_ceil(sets).max(1)).collect();
-    let frames = &mut captured.frames[h];
-    let per_set = frames.len().div_ceil(sets).max(1);
-    let mut frame_sets: Vec<&mut [Raster<f32>]> = frames.chunks_mut(per_set).collect();
-    let (r, saturated) = exposure::reconstruct_sets(
-        &rc,
-        &raw_sets,
-        &mut frame_sets,
-        config.saturation_level,
-        config.mode == Mode::Sequential,
-    )
-    .map_err(|source| ScanError::Reconstruct { head, source })?;
-    let mut level_step_px = 0;
-    let r = match record {
-        Some(rec) => {
-            let guard = match &config.exposures {
-                Exposures::AdaptiveHdr(params) => params.clone(),
-                _ => crate::adaptive::hdr::HdrParams::default(),
-            };
-            let mut maps = r.pixels;
-            level_step_px = crate::adaptive::edges::mark_level_steps(
-                &mut maps,
-                &rec.level_map,
-                &calibration.heads[h].projector,
-                guard.step_radius_px,
-                guard.max_step_ratio,
-            );
-            rc.from_maps(maps)
-        }
-        None => r,
-    };
-    if config.mode == Mode::Sequential {
-        exposure::warn(head, &saturated, record.map(|r| &r.stats), warnings);
-    }
-    let figures = ExposureFigures {
-        images: captured.images[h],
-        scales: captured.set_scales[h].clone(),
-        saturated_px: saturated.iter().filter(|&&s| s).count(),
-        below_floor_px: exposure::below_floor(&r, exposure::modulation_floor(&rc), &saturated),
-        pixels: saturated.len(),
-        adaptive: record.map(|a| exposure::AdaptiveFigures {
-            exposure: a.exposure,
-            stats: a.stats,
-            before_saturated_px: a.before_saturated_px,
-            before_below_floor_px: a.before_below_floor_px,
-            level_step_px,
-        }),
-    };
-    Ok((r, figures))
-}
-
 /// Wall-clock time per stage, logged as each ends.
 pub(crate) struct Clock {
     last: Instant,
@@ -732,106 +640,4 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::calibration::{Head, PinholeModel, Pose};
-
-    fn rig(heads: usize, head_to_head: bool) -> RigCalibration {
-        let head = |name: &str| Head {
-            name: name.into(),
-            camera: PinholeModel::ideal(64, 48, 80.0),
-            projector: PinholeModel::ideal(128, 80, 120.0),
-            view_errors: vec![],
-        };
-        RigCalibration {
-            heads: ["A", "B", "C"]
-                .iter()
-                .take(heads)
-                .map(|n| head(n))
-                .collect(),
-            head_to_head: head_to_head.then(Pose::identity),
-        }
-    }
-
-    #[test]
-    fn rigs_and_modes_the_board_cannot_run_are_refused_by_name() {
-        let config = ScanConfig::new("x");
-        check_before_capture(&rig(1, false), &config).unwrap();
-        check_before_capture(&rig(2, true), &config).unwrap();
-        let err = check_before_capture(&rig(3, true), &config).unwrap_err();
-        assert!(matches!(err, ScanError::HeadCount { heads: 3 }), "{err}");
-        assert!(
-            err.to_string().contains("sync board drives 1 to 2"),
-            "{err}"
-        );
-        assert!(matches!(
-            check_before_capture(&rig(0, false), &config),
-            Err(ScanError::HeadCount { heads: 0 })
-        ));
-        assert!(matches!(
-            check_before_capture(&rig(2, false), &config),
-            Err(ScanError::NoHeadToHead)
-        ));
-        let mut simultaneous = config.clone();
-        simultaneous.mode = Mode::Simultaneous;
-        assert!(matches!(
-            check_before_capture(&rig(1, false), &simultaneous),
-            Err(ScanError::ModeNeedsTwoHeads { .. })
-        ));
-        // Analytic de-aliasing with the three default periods: too few.
-        assert!(matches!(
-            check_before_capture(&rig(2, true), &simultaneous),
-            Err(ScanError::DealiasPeriods { periods: 3 })
-        ));
-        simultaneous.periods_px = dealias_periods_px(1280);
-        check_before_capture(&rig(2, true), &simultaneous).unwrap();
-        // Periods that cannot be projected, refused before any capture.
-        for bad in [vec![], vec![0.0, 0.0, 0.0], vec![20.0, f64::NAN]] {
-            let mut c = config.clone();
-            c.periods_px = bad;
-            assert!(matches!(
-                check_before_capture(&rig(1, false), &c),
-                Err(ScanError::BadPeriod { .. })
-            ));
-        }
-        // Exposure kinds the mode or the plan cannot run, a bad saturation level.
-        let mut c = config.clone();
-        c.exposures = Exposures::Multi(vec![]);
-        assert!(matches!(
-            check_before_capture(&rig(1, false), &c),
-            Err(ScanError::NoExposures)
-        ));
-        c.exposures = Exposures::Multi(vec![1.0, 100.0]);
-        assert!(matches!(
-            check_before_capture(&rig(1, false), &c),
-            Err(ScanError::Plan(plan::PlanBuildError::ExposureScale { .. }))
-        ));
-        c.exposures = Exposures::AdaptiveHdr(crate::adaptive::hdr::HdrParams::default());
-        check_before_capture(&rig(1, false), &c).unwrap();
-        let mut bad = crate::adaptive::hdr::HdrParams::default();
-        bad.rule.target = 1.5;
-        c.exposures = Exposures::AdaptiveHdr(bad);
-        assert!(matches!(
-            check_before_capture(&rig(1, false), &c),
-            Err(ScanError::Adaptive(_))
-        ));
-        let mut two = simultaneous.clone();
-        two.exposures = Exposures::Multi(vec![1.0, 0.25]);
-        assert!(matches!(
-            check_before_capture(&rig(2, true), &two),
-            Err(ScanError::ExposuresNeedSequential { .. })
-        ));
-        let mut c = config.clone();
-        c.saturation_level = 0.0;
-        assert!(matches!(
-            check_before_capture(&rig(1, false), &c),
-            Err(ScanError::SaturationLevel(_))
-        ));
-        // Learned de-aliasing with no network loaded.
-        simultaneous.dealias = crate::dealias::DealiasMethod::Learned;
-        assert!(matches!(
-            check_before_capture(&rig(2, true), &simultaneous),
-            Err(ScanError::NoLearnedModel)
-        ));
-    }
-}
+mod tests;

@@ -1,0 +1,103 @@
+//! What a scan refuses before it touches the rig.
+
+use super::*;
+use crate::calibration::{Head, PinholeModel, Pose};
+
+fn rig(heads: usize, head_to_head: bool) -> RigCalibration {
+    let head = |name: &str| Head {
+        name: name.into(),
+        camera: PinholeModel::ideal(64, 48, 80.0),
+        projector: PinholeModel::ideal(128, 80, 120.0),
+        view_errors: vec![],
+    };
+    RigCalibration {
+        heads: ["A", "B", "C"]
+            .iter()
+            .take(heads)
+            .map(|n| head(n))
+            .collect(),
+        head_to_head: head_to_head.then(Pose::identity),
+    }
+}
+
+#[test]
+fn rigs_and_modes_the_board_cannot_run_are_refused_by_name() {
+    let config = ScanConfig::new("x");
+    check_before_capture(&rig(1, false), &config).unwrap();
+    check_before_capture(&rig(2, true), &config).unwrap();
+    let err = check_before_capture(&rig(3, true), &config).unwrap_err();
+    assert!(matches!(err, ScanError::HeadCount { heads: 3 }), "{err}");
+    assert!(
+        err.to_string().contains("sync board drives 1 to 2"),
+        "{err}"
+    );
+    assert!(matches!(
+        check_before_capture(&rig(0, false), &config),
+        Err(ScanError::HeadCount { heads: 0 })
+    ));
+    assert!(matches!(
+        check_before_capture(&rig(2, false), &config),
+        Err(ScanError::NoHeadToHead)
+    ));
+    let mut simultaneous = config.clone();
+    simultaneous.mode = Mode::Simultaneous;
+    assert!(matches!(
+        check_before_capture(&rig(1, false), &simultaneous),
+        Err(ScanError::ModeNeedsTwoHeads { .. })
+    ));
+    // Analytic de-aliasing with the three default periods: too few.
+    assert!(matches!(
+        check_before_capture(&rig(2, true), &simultaneous),
+        Err(ScanError::DealiasPeriods { periods: 3 })
+    ));
+    simultaneous.periods_px = dealias_periods_px(1280);
+    check_before_capture(&rig(2, true), &simultaneous).unwrap();
+    // Periods that cannot be projected, refused before any capture.
+    for bad in [vec![], vec![0.0, 0.0, 0.0], vec![20.0, f64::NAN]] {
+        let mut c = config.clone();
+        c.periods_px = bad;
+        assert!(matches!(
+            check_before_capture(&rig(1, false), &c),
+            Err(ScanError::BadPeriod { .. })
+        ));
+    }
+    // Exposure kinds the mode or the plan cannot run, a bad saturation level.
+    let mut c = config.clone();
+    c.exposures = Exposures::Multi(vec![]);
+    assert!(matches!(
+        check_before_capture(&rig(1, false), &c),
+        Err(ScanError::NoExposures)
+    ));
+    c.exposures = Exposures::Multi(vec![1.0, 100.0]);
+    assert!(matches!(
+        check_before_capture(&rig(1, false), &c),
+        Err(ScanError::Plan(plan::PlanBuildError::ExposureScale { .. }))
+    ));
+    c.exposures = Exposures::AdaptiveHdr(crate::adaptive::hdr::HdrParams::default());
+    check_before_capture(&rig(1, false), &c).unwrap();
+    let mut bad = crate::adaptive::hdr::HdrParams::default();
+    bad.rule.target = 1.5;
+    c.exposures = Exposures::AdaptiveHdr(bad);
+    assert!(matches!(
+        check_before_capture(&rig(1, false), &c),
+        Err(ScanError::Adaptive(_))
+    ));
+    let mut two = simultaneous.clone();
+    two.exposures = Exposures::Multi(vec![1.0, 0.25]);
+    assert!(matches!(
+        check_before_capture(&rig(2, true), &two),
+        Err(ScanError::ExposuresNeedSequential { .. })
+    ));
+    let mut c = config.clone();
+    c.saturation_level = 0.0;
+    assert!(matches!(
+        check_before_capture(&rig(1, false), &c),
+        Err(ScanError::SaturationLevel(_))
+    ));
+    // Learned de-aliasing with no network loaded.
+    simultaneous.dealias = crate::dealias::DealiasMethod::Learned;
+    assert!(matches!(
+        check_before_capture(&rig(2, true), &simultaneous),
+        Err(ScanError::NoLearnedModel)
+    ));
+}
