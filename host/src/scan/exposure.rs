@@ -214,6 +214,32 @@ mod tests {
     use crate::reconstruct::ReconstructConfig;
 
     #[test]
+    fn lost_pixels_and_unholdable_surfaces_are_warned_about() {
+        let mut warnings = Vec::new();
+        // 1 in 1000 saturated: quiet; 2 in 1000: a warning that names the fix.
+        let mut saturated = vec![false; 1000];
+        saturated[0] = true;
+        warn("A", &saturated, None, &mut warnings);
+        assert!(warnings.is_empty());
+        saturated[1] = true;
+        warn("A", &saturated, None, &mut warnings);
+        assert_eq!(warnings.len(), 1);
+        assert!(warnings[0].contains("--adaptive hdr"), "{warnings:?}");
+        // Adaptive: pixels saturating at the lowest flood, and unplaced ones.
+        let stats = HdrStats {
+            saturates_at_lowest_px: 3,
+            lowered_px: 10,
+            unmapped_px: 2,
+            ..HdrStats::default()
+        };
+        warnings.clear();
+        warn("B", &[false; 10], Some(&stats), &mut warnings);
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(warnings[0].contains("3 pixels saturate even at the lowest lit flood"));
+        assert!(warnings[1].contains("could not place 2 of the 10"));
+    }
+
+    #[test]
     fn saturated_and_nan_pixels_are_found() {
         let a = Raster::from_vec(3, 1, vec![0.2, 0.999, 0.5]).unwrap();
         let b = Raster::from_vec(3, 1, vec![0.3, 0.1, f32::NAN]).unwrap();
