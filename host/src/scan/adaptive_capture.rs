@@ -100,15 +100,7 @@ pub(super) fn hdr<R: Board + Projector + Camera>(
             params,
         )?;
         progress(Progress::Step);
-        tracing::info!(
-            head = HEAD_NAMES[h],
-            exposure_scale = adaptation.exposure.scale,
-            limited_by = adaptation.exposure.limit.name(),
-            lowered_px = adaptation.stats.lowered_px,
-            by_homography_px = adaptation.stats.mapped_by_homography_px,
-            unmapped_px = adaptation.stats.unmapped_px,
-            "adapted the fringes"
-        );
+        log_adaptation(h, &adaptation.exposure, &adaptation.stats);
         rig.load_sequence(h, &for_projector(adaptation.patterns.clone(), config))?;
         run(
             rig,
@@ -217,15 +209,7 @@ pub(super) fn colour<R: Board + Projector + Camera>(
             params,
         )?;
         progress(Progress::Step);
-        tracing::info!(
-            head = HEAD_NAMES[h],
-            exposure_scale = adaptation.exposure.scale,
-            limited_by = adaptation.exposure.limit.name(),
-            lowered_px = adaptation.stats.lowered_px,
-            matched_px = uv.data.iter().filter(|q| q[0].is_finite()).count(),
-            unmapped_px = adaptation.stats.unmapped_px,
-            "adapted the colour fringes"
-        );
+        log_adaptation(h, &adaptation.exposure, &adaptation.stats);
         let frames = colour_images(
             rig,
             config,
@@ -289,4 +273,18 @@ pub(super) fn colour<R: Board + Projector + Camera>(
         noise_factor: 1.0,
         flat: None,
     })
+}
+
+/// Logs what head `h`'s adaptation chose.
+fn log_adaptation(h: usize, exposure: &ExposureChoice, stats: &HdrStats) {
+    tracing::info!(
+        head = HEAD_NAMES[h],
+        exposure_scale = exposure.scale,
+        limited_by = exposure.limit.name(),
+        lowered_px = stats.lowered_px,
+        placed_by_phase_or_match_px = stats.mapped_by_phase_px,
+        placed_by_homography_px = stats.mapped_by_homography_px,
+        unplaced_px = stats.unmapped_px,
+        "adapted the fringes"
+    );
 }
