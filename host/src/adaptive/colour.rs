@@ -210,9 +210,9 @@ pub fn decode_matching(
     ];
     let need = (bits[0] + bits[1]) * block as usize;
     if frames.len() != need {
-        return Err(AdaptiveError::FloodCount {
+        return Err(AdaptiveError::MatchingCount {
             got: frames.len(),
-            levels: need,
+            need,
         });
     }
     let mut coords = Vec::new();
@@ -496,7 +496,10 @@ mod tests {
         }
         let uv = decode_matching(&blurred, &lit(0.6), dmd, &params).unwrap();
         assert!((uv.data[8][0] - 8.0).abs() <= 4.0, "{:?}", uv.data[8]);
-        assert!(decode_matching(&frames[1..], &lit(0.6), dmd, &params).is_err());
+        assert!(matches!(
+            decode_matching(&frames[1..], &lit(0.6), dmd, &params),
+            Err(AdaptiveError::MatchingCount { got: 27, need: 28 })
+        ));
     }
 
     #[test]

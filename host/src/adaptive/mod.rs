@@ -43,6 +43,14 @@ pub enum AdaptiveError {
         /// Levels projected.
         levels: usize,
     },
+    /// Another number of Gray-code matching images than the DMD's codes need.
+    #[error("{got} matching images, the DMD's Gray codes need {need}")]
+    MatchingCount {
+        /// Images given.
+        got: usize,
+        /// Images the codes need.
+        need: usize,
+    },
     /// Too few or unusable flood levels.
     #[error("flood levels {levels:?}: need 2 to 16 levels in [0, 1], at least 2 of them distinct")]
     FloodLevels {
