@@ -52,6 +52,20 @@ pub struct Head {
     pub view_errors: Vec<ViewError>,
 }
 
+/// A stereo head: two calibrated cameras and an uncalibrated projector that only
+/// labels the surface (each point's absolute phase matches a left pixel to a right
+/// one); depth comes from the two cameras. Poses map the head's world frame (usually
+/// the left camera's) into each camera, as OpenCV's `R`/`T` do.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StereoHead {
+    /// Name of the head, as the rig file calls it.
+    pub name: String,
+    /// The left (reference) camera, pose world -> camera.
+    pub left: CameraModel,
+    /// The right camera, pose world -> camera.
+    pub right: CameraModel,
+}
+
 /// A calibrated rig of one or two heads.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RigCalibration {
