@@ -377,17 +377,9 @@ impl Reconstructor {
     /// the cloud is compacted from the maps' valid pixels as the row pass's
     /// would be.
     pub fn from_maps(&self, pixels: PixelMaps) -> Reconstruction {
-        let counts: Vec<usize> = pixels
-            .status
-            .chunks(pixels.width.max(1))
-            .map(|row| row.iter().filter(|&&s| s == PixelStatus::Valid).count())
-            .collect();
-        let mut out = Reconstruction {
-            pixels,
-            cloud: PointCloud::default(),
-        };
-        self.cloud_into(&out.pixels, &counts, &mut out.cloud);
-        out
+        let c = self.triangulator.camera().centre_m();
+        let view = [c.x as f32, c.y as f32, c.z as f32];
+        Reconstruction::from_pixel_maps(pixels, view, self.config.normals, self.simd)
     }
 
     /// Compacts valid pixels into a cloud (see [`cloud::compact_into`]).
@@ -400,6 +392,24 @@ impl Reconstructor {
 }
 
 impl Reconstruction {
+    /// The result of per-pixel maps made outside the pipeline (another decoder, a
+    /// stereo head): the cloud is compacted from the maps' valid pixels as the row
+    /// pass's would be, normals (when asked for) turned towards `view_m`, the point
+    /// the pixels were seen from.
+    pub fn from_pixel_maps(pixels: PixelMaps, view_m: [f32; 3], normals: bool, simd: Simd) -> Self {
+        let counts: Vec<usize> = pixels
+            .status
+            .chunks(pixels.width.max(1))
+            .map(|row| row.iter().filter(|&&s| s == PixelStatus::Valid).count())
+            .collect();
+        let mut out = Reconstruction {
+            pixels,
+            cloud: PointCloud::default(),
+        };
+        cloud::compact_into(&out.pixels, &counts, normals, view_m, simd, &mut out.cloud);
+        out
+    }
+
     /// Depth map, metres (NaN where not valid).
     pub fn depth_m(&self) -> Raster<f32> {
         self.pixels.raster(&self.pixels.depth_m)
