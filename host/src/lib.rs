@@ -18,6 +18,7 @@
 pub mod adaptive;
 pub mod board;
 pub mod calibration;
+pub mod capture;
 pub mod dealias;
 pub mod demultiplex;
 pub mod fit;

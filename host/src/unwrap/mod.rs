@@ -5,12 +5,14 @@
 //! | multi-frequency heterodyne (2, 3, 4 ... periods) | [`heterodyne`] | beat of all periods >= field |
 //! | projection distance minimisation (number-theoretic) | [`pdm`] | LCM of the periods >= field |
 //! | Gray code + phase | [`gray_code`] | Gray blocks <= half a period |
+//! | complementary Gray code + phase | [`complementary_gray`] | `n + 1` bits, finest block half a period |
 //! | quality-guided spatial flood fill | [`quality_guided`] | one frequency, connected surface |
 //!
 //! Every method returns an [`AbsolutePhase`]: the absolute phase `Phi = 2 pi u / P` of one
 //! chosen period (projector coordinate `u`, pixel centres at integers) and a per-pixel
 //! [`PixelStatus`]. Pixels a method cannot unwrap reliably are marked, never guessed.
 
+pub mod complementary_gray;
 pub mod gray_code;
 pub mod heterodyne;
 pub mod pdm;
