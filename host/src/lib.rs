@@ -9,7 +9,8 @@
 //! ```
 //!
 //! [`reconstruct::Reconstructor`] runs phase -> heterodyne -> triangulation in one fused
-//! pass for one head. `sim` (cargo feature `sim`, on by default) is the only module that
+//! pass for one head; [`stereo::StereoReconstructor`] matches two cameras' projector
+//! coordinates and triangulates them (a stereo head). `sim` (cargo feature `sim`, on by default) is the only module that
 //! knows the simulator (hil-sim): the simulated rig, the twin's truth and calibration views;
 //! `--no-default-features` builds the hardware path and the CLI without it. [`synth`] is a formula-based renderer for tests and benches (not the
 //! digital twin); [`fit`] fits planes and spheres for accuracy reports.
@@ -37,6 +38,7 @@ pub mod scan;
 #[cfg(feature = "sim")]
 pub mod sim;
 pub mod simd;
+pub mod stereo;
 pub mod synth;
 pub mod triangulation;
 pub mod unwrap;

@@ -33,7 +33,7 @@ pub struct PixelMaps {
 }
 
 /// One row of every map, mutable: what the row pass writes.
-pub(super) struct RowMut<'a> {
+pub(crate) struct RowMut<'a> {
     pub status: &'a mut [PixelStatus],
     pub phase_u: &'a mut [f32],
     pub point_m: [&'a mut [f32]; 3],
@@ -112,7 +112,7 @@ impl PixelMaps {
 
     /// Sizes every map for `width x height` (contents unspecified: the row pass writes
     /// every element). Memory is only allocated where a map grows (see [`sized`]).
-    pub(super) fn resize(&mut self, width: usize, height: usize) {
+    pub(crate) fn resize(&mut self, width: usize, height: usize) {
         let len = width * height;
         (self.width, self.height) = (width, height);
         sized(&mut self.status, len, PixelStatus::Masked);
@@ -128,7 +128,7 @@ impl PixelMaps {
     }
 
     /// Every row of every map, for the row pass (after [`PixelMaps::resize`]).
-    pub(super) fn rows_mut(&mut self) -> Vec<RowMut<'_>> {
+    pub(crate) fn rows_mut(&mut self) -> Vec<RowMut<'_>> {
         let w = self.width.max(1);
         let [px, py, pz] = &mut self.point_m;
         let mut rows = Vec::with_capacity(self.height);
