@@ -392,22 +392,6 @@ impl Reconstructor {
     }
 }
 
-/// Maps filled by another pipeline of this crate (the stereo head's) with their cloud
-/// compacted as [`Reconstructor`]'s row pass compacts its own: one compaction for every
-/// kind of head, so clouds, pictures and reports cannot differ between them.
-/// `valid_per_row` counts each row's valid pixels; `view_m` turns the normals.
-pub(crate) fn compact(
-    pixels: PixelMaps,
-    valid_per_row: &[usize],
-    normals: bool,
-    view_m: [f32; 3],
-    simd: Simd,
-) -> Reconstruction {
-    let mut cloud = PointCloud::default();
-    cloud::compact_into(&pixels, valid_per_row, normals, view_m, simd, &mut cloud);
-    Reconstruction { pixels, cloud }
-}
-
 impl Reconstruction {
     /// The result of per-pixel maps made outside the pipeline (another decoder, a
     /// stereo head): the cloud is compacted from the maps' valid pixels as the row

@@ -282,20 +282,19 @@ impl StereoReconstructor {
         let (width, height) = r.left_size();
         let mut pixels = PixelMaps::default();
         pixels.resize(width, height);
-        let counts: Vec<usize> = pixels
+        pixels
             .rows_mut()
             .into_par_iter()
             .enumerate()
-            .map(|(y, row)| self.left_row(y, left_u, left_modulation, &right, row))
-            .collect();
+            .for_each(|(y, row)| self.left_row(y, left_u, left_modulation, &right, row));
         let centre = self.triangulator.left_centre_m();
         let view = [centre.x as f32, centre.y as f32, centre.z as f32];
-        Ok(crate::reconstruct::compact(
-            pixels, &counts, c.normals, view, self.simd,
+        Ok(Reconstruction::from_pixel_maps(
+            pixels, view, c.normals, self.simd,
         ))
     }
 
-    /// Matches and triangulates left row `y` into `out`; returns its valid pixels.
+    /// Matches and triangulates left row `y` into `out`.
     fn left_row(
         &self,
         y: usize,
@@ -303,7 +302,7 @@ impl StereoReconstructor {
         left_modulation: &Raster<f32>,
         right: &RectifiedRight,
         out: RowMut<'_>,
-    ) -> usize {
+    ) {
         let c = &self.config;
         let w = left_u.width;
         let (u_row, b_row) = (
@@ -313,7 +312,6 @@ impl StereoReconstructor {
         let (xr_row, yr_row) = self.rectification.left_row(y);
         let phase_per_px = (std::f64::consts::TAU / c.period_px) as f32;
         let (d_min, d_max) = self.triangulator.disparity_window_px(c.depth_range_m);
-        let mut valid = 0;
         for x in 0..w {
             let (u, b) = (u_row[x], b_row[x]);
             out.modulation[x] = b;
@@ -345,7 +343,6 @@ impl StereoReconstructor {
                     out.sigma_m[x] = p.sigma_m;
                     out.modulation[x] = b_pair;
                     out.background[x] = b_pair;
-                    valid += 1;
                 }
                 None => {
                     out.phase_u[x] = f32::NAN;
@@ -357,7 +354,6 @@ impl StereoReconstructor {
                 }
             }
         }
-        valid
     }
 }
 
