@@ -65,6 +65,11 @@ pub const BUILT_IN: &[BuiltIn] = &[
         build: spheres,
     },
     BuiltIn {
+        name: "stereo-spheres",
+        about: "the two calibration spheres seen by a stereo head: two cameras 170 mm apart, one projector between them",
+        build: stereo_spheres,
+    },
+    BuiltIn {
         name: "prism",
         about: "prism with protrusions casting shadows and blind spots, one head",
         build: prism,
@@ -196,6 +201,27 @@ pub fn dual_head(detail: &Detail) -> Rig {
     }
 }
 
+/// Half the stereo head's baseline, metres: its cameras are 170 mm apart.
+pub const STEREO_HALF_BASELINE_M: f64 = 0.085;
+
+/// A stereo head: cameras `cam-left` and `cam-right` (in that order) 170 mm apart,
+/// converging on the point 0.5 m in front of their midpoint, and one projector at the
+/// midpoint that only labels the surface. With the projector on the baseline, each
+/// projector column lights one surface point per epipolar plane, so a column value is
+/// found once on a rectified row.
+pub fn stereo_head(detail: &Detail) -> Rig {
+    let target = V3::new(0.0, 0.0, 0.5);
+    let h = STEREO_HALF_BASELINE_M;
+    Rig {
+        cameras: vec![
+            camera("cam-left", detail, V3::new(-h, 0.0, 0.0), target),
+            camera("cam-right", detail, V3::new(h, 0.0, 0.0), target),
+        ],
+        projectors: vec![projector("proj", detail, V3::zeros(), target)],
+        medium: Medium::Air,
+    }
+}
+
 fn matte(r: f32, g: f32, b: f32) -> Material {
     Material::matte(Albedo::Constant([r, g, b]))
 }
@@ -236,6 +262,15 @@ fn plane(d: &Detail) -> Result<(Scene, Rig), TwinError> {
 }
 
 fn spheres(d: &Detail) -> Result<(Scene, Rig), TwinError> {
+    Ok((calibration_spheres(), single_head(d)))
+}
+
+fn stereo_spheres(d: &Detail) -> Result<(Scene, Rig), TwinError> {
+    Ok((calibration_spheres(), stereo_head(d)))
+}
+
+/// Seed 001's two spheres, centres on the x axis 0.5 m out, before a dim wall.
+fn calibration_spheres() -> Scene {
     let half = 0.5 * SPHERE_CENTRE_DISTANCE_M;
     let s = |i: usize, x: f64| {
         Object::new(
@@ -247,10 +282,7 @@ fn spheres(d: &Detail) -> Result<(Scene, Rig), TwinError> {
             Pose::translation(x, 0.0, 0.5),
         )
     };
-    Ok((
-        with_ambient(vec![s(0, -half), s(1, half), wall(0.6, 0.3)]),
-        single_head(d),
-    ))
+    with_ambient(vec![s(0, -half), s(1, half), wall(0.6, 0.3)])
 }
 
 fn prism(d: &Detail) -> Result<(Scene, Rig), TwinError> {
@@ -566,6 +598,29 @@ mod tests {
             .map(|o| o.pose.translation.vector)
             .collect();
         assert!(((c[0] - c[1]).norm() - 0.1001166).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_stereo_scene_is_the_sphere_scene_seen_by_two_cameras_and_one_projector() {
+        let d = Detail::default();
+        let (stereo, rig) = built_in("stereo-spheres", &d).unwrap();
+        let (spheres, _) = built_in("spheres", &d).unwrap();
+        assert_eq!(stereo.objects.len(), spheres.objects.len());
+        for (a, b) in stereo.objects.iter().zip(&spheres.objects) {
+            assert_eq!(a.pose, b.pose);
+        }
+        assert_eq!((rig.cameras.len(), rig.projectors.len()), (2, 1));
+        let (l, r) = (&rig.cameras[0].model, &rig.cameras[1].model);
+        let baseline =
+            r.world_from_device.translation.vector - l.world_from_device.translation.vector;
+        assert!((baseline - V3::new(0.17, 0.0, 0.0)).norm() < 1e-12);
+        // Both cameras see both spheres' centres.
+        for cam in [l, r] {
+            for o in &stereo.objects[..2] {
+                let p = cam.project(&o.pose.translation.vector).unwrap();
+                assert!(p[0] > 0.0 && p[0] < 640.0 && p[1] > 0.0 && p[1] < 480.0);
+            }
+        }
     }
 
     #[test]
