@@ -141,6 +141,7 @@ fn fuse_writes_one_cloud_from_binary_files() {
     let rig = slscan::calibration::RigCalibration {
         heads: vec![head("A"), head("B")],
         head_to_head: Some(slscan::calibration::Pose::from_isometry(&guess.inverse())),
+        stereo_heads: vec![],
     };
     slscan::calibration::write_rig(&dir.join("rig.json"), &rig).unwrap();
     let d = |n: &str| dir.join(n).display().to_string();

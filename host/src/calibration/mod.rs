@@ -8,7 +8,8 @@
 //! A rig has one or two *heads*; each head is a camera and a projector whose poses are
 //! given in the head's own world frame (usually the camera frame, so the camera pose is
 //! the identity). With two heads, [`RigCalibration::head_to_head`] maps head 0's frame
-//! into head 1's.
+//! into head 1's. A rig may also hold stereo heads (two cameras and an uncalibrated
+//! projector, [`StereoHead`]), and then needs no projector-camera head at all.
 
 pub mod board;
 pub mod bundle;
@@ -66,13 +67,15 @@ pub struct StereoHead {
     pub right: CameraModel,
 }
 
-/// A calibrated rig of one or two heads.
+/// A calibrated rig of one or two projector-camera heads, and any stereo heads.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RigCalibration {
-    /// One or two heads.
+    /// One or two projector-camera heads (none when there is a stereo head).
     pub heads: Vec<Head>,
     /// With two heads: head 0's world frame -> head 1's world frame. `None` with one head.
     pub head_to_head: Option<Pose>,
+    /// Stereo heads (two cameras each), each in its own world frame.
+    pub stereo_heads: Vec<StereoHead>,
 }
 
 impl Head {
@@ -93,12 +96,18 @@ impl RigCalibration {
         Self {
             heads: vec![head],
             head_to_head: None,
+            stereo_heads: vec![],
         }
     }
 
     /// The head with this name.
     pub fn head(&self, name: &str) -> Option<&Head> {
         self.heads.iter().find(|h| h.name == name)
+    }
+
+    /// The stereo head with this name.
+    pub fn stereo_head(&self, name: &str) -> Option<&StereoHead> {
+        self.stereo_heads.iter().find(|h| h.name == name)
     }
 
     /// Checks everything a reader of the rig relies on (see [`RigFileError`] for the list).

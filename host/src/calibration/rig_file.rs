@@ -12,9 +12,14 @@
 //!     "projector": {"width_px": 912, "height_px": 1140, "...": "same fields"},
 //!     "view_errors": [{"view": "pose_00", "camera_rms_px": 0.08, "projector_rms_px": 0.12}]
 //!   }],
-//!   "head_to_head": null
+//!   "head_to_head": null,
+//!   "stereo_heads": [{"name": "S", "left": {"...": "camera fields"}, "right": {"...": "camera fields"}}]
 //! }
 //! ```
+//!
+//! `stereo_heads` is optional (absent in older files, and not written when empty); a rig
+//! has 1 or 2 projector heads, or none when it has a stereo head. Names are unique across
+//! both lists.
 //!
 //! `rotation` is row-major and, with `translation_m`, maps the head's world frame into the
 //! device (`x_d = R x_w + t`), as OpenCV's `R`/`T`. Reading parses the text (serde names a
@@ -26,7 +31,9 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::{Distortion, Head, Intrinsics, PinholeModel, Pose, RigCalibration, ViewError};
+use super::{
+    Distortion, Head, Intrinsics, PinholeModel, Pose, RigCalibration, StereoHead, ViewError,
+};
 
 /// The `format` string every rig file carries.
 pub const FORMAT: &str = "slscan-rig";
@@ -98,8 +105,8 @@ pub enum RigFileError {
         /// `max|R^T R - I| + |det R - 1|`.
         defect: f64,
     },
-    /// A rig needs one or two heads.
-    #[error("a rig has 1 or 2 heads, this one has {count}")]
+    /// A rig needs one or two heads (or none, with a stereo head).
+    #[error("a rig has 1 or 2 projector heads (or none with a stereo head), this one has {count}")]
     HeadCount {
         /// Heads found.
         count: usize,
@@ -112,7 +119,7 @@ pub enum RigFileError {
         /// Whether `head_to_head` was given.
         present: bool,
     },
-    /// Two heads share a name.
+    /// Two heads (projector or stereo) share a name.
     #[error("two heads are both named {name:?}")]
     DuplicateHeadName {
         /// The name.
@@ -136,6 +143,16 @@ struct RigDoc {
     heads: Vec<HeadDoc>,
     #[serde(default)]
     head_to_head: Option<PoseDoc>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    stereo_heads: Vec<StereoHeadDoc>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StereoHeadDoc {
+    name: String,
+    left: DeviceDoc,
+    right: DeviceDoc,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -220,6 +237,15 @@ pub fn parse_rig(text: &str) -> Result<RigCalibration, RigFileError> {
         head_to_head: doc
             .head_to_head
             .map(|p| pose_from_doc(&p.rotation, &p.translation_m)),
+        stereo_heads: doc
+            .stereo_heads
+            .iter()
+            .map(|h| StereoHead {
+                name: h.name.clone(),
+                left: device_from_doc(&h.left),
+                right: device_from_doc(&h.right),
+            })
+            .collect(),
     };
     validate(&rig)?;
     Ok(rig)
@@ -239,6 +265,15 @@ pub fn to_json(rig: &RigCalibration) -> Result<String, RigFileError> {
                 translation_m,
             }
         }),
+        stereo_heads: rig
+            .stereo_heads
+            .iter()
+            .map(|h| StereoHeadDoc {
+                name: h.name.clone(),
+                left: device_to_doc(&h.left),
+                right: device_to_doc(&h.right),
+            })
+            .collect(),
     };
     serde_json::to_string_pretty(&doc).map_err(|source| RigFileError::Json {
         path: PathBuf::new(),
@@ -257,11 +292,13 @@ pub fn write_rig(path: &Path, rig: &RigCalibration) -> Result<(), RigFileError> 
     })
 }
 
-/// Checks a rig: 1-2 heads, unique names, finite numbers, positive focal lengths, sane
-/// sizes, proper rotations, `head_to_head` iff two heads, non-negative errors.
+/// Checks a rig: 1-2 heads (or 0 with a stereo head), unique names, finite numbers,
+/// positive focal lengths, sane sizes, proper rotations, `head_to_head` iff two heads,
+/// non-negative errors.
 pub fn validate(rig: &RigCalibration) -> Result<(), RigFileError> {
     let count = rig.heads.len();
-    if !(1..=2).contains(&count) {
+    let min = if rig.stereo_heads.is_empty() { 1 } else { 0 };
+    if !(min..=2).contains(&count) {
         return Err(RigFileError::HeadCount { count });
     }
     if (count == 2) != rig.head_to_head.is_some() {
@@ -270,10 +307,12 @@ pub fn validate(rig: &RigCalibration) -> Result<(), RigFileError> {
             present: rig.head_to_head.is_some(),
         });
     }
-    if count == 2 && rig.heads[0].name == rig.heads[1].name {
-        return Err(RigFileError::DuplicateHeadName {
-            name: rig.heads[0].name.clone(),
-        });
+    let mut names = std::collections::HashSet::new();
+    let all_names = rig.heads.iter().map(|h| &h.name);
+    for name in all_names.chain(rig.stereo_heads.iter().map(|h| &h.name)) {
+        if !names.insert(name) {
+            return Err(RigFileError::DuplicateHeadName { name: name.clone() });
+        }
     }
     for (i, head) in rig.heads.iter().enumerate() {
         validate_device(&format!("heads[{i}].camera"), &head.camera)?;
@@ -285,6 +324,10 @@ pub fn validate(rig: &RigCalibration) -> Result<(), RigFileError> {
                 check_error(&format!("{field}.projector_rms_px"), p)?;
             }
         }
+    }
+    for (i, head) in rig.stereo_heads.iter().enumerate() {
+        validate_device(&format!("stereo_heads[{i}].left"), &head.left)?;
+        validate_device(&format!("stereo_heads[{i}].right"), &head.right)?;
     }
     if let Some(p) = &rig.head_to_head {
         validate_pose("head_to_head", p)?;
@@ -488,6 +531,7 @@ mod tests {
                 rotation: *Rotation3::from_euler_angles(0.0, 1.2, 0.0).matrix(),
                 translation_m: Vector3::new(0.5, 0.0, 0.2),
             }),
+            stereo_heads: vec![],
         }
     }
 
@@ -586,6 +630,7 @@ mod tests {
         let rig = RigCalibration {
             heads: vec![],
             head_to_head: None,
+            stereo_heads: vec![],
         };
         assert!(matches!(
             to_json(&rig),
@@ -605,6 +650,66 @@ mod tests {
             parse_rig(&other),
             Err(RigFileError::UnsupportedFormat { .. })
         ));
+    }
+
+    fn stereo(name: &str) -> StereoHead {
+        let mut right = PinholeModel::ideal(320, 240, 410.0);
+        right.distortion.k2 = -0.01;
+        right.pose = Pose {
+            rotation: *Rotation3::from_euler_angles(0.01, -0.1, 0.0).matrix(),
+            translation_m: Vector3::new(-0.12, 0.001, 0.004),
+        };
+        StereoHead {
+            name: name.to_owned(),
+            left: PinholeModel::ideal(320, 240, 400.0),
+            right,
+        }
+    }
+
+    #[test]
+    fn stereo_heads_round_trip_alone_or_beside_heads() {
+        let alone = RigCalibration {
+            heads: vec![],
+            head_to_head: None,
+            stereo_heads: vec![stereo("S")],
+        };
+        let mut beside = two_heads();
+        beside.stereo_heads = vec![stereo("S"), stereo("T")];
+        for rig in [alone, beside] {
+            let text = to_json(&rig).expect("valid");
+            assert!(text.contains("\"stereo_heads\""));
+            assert_eq!(parse_rig(&text).expect("parses"), rig);
+        }
+        // Files without stereo heads are written as before: no `stereo_heads` key.
+        let text = to_json(&two_heads()).unwrap();
+        assert!(!text.contains("stereo_heads"), "{text}");
+    }
+
+    #[test]
+    fn stereo_heads_are_validated() {
+        let mut rig = RigCalibration::single(head("A"));
+        rig.stereo_heads = vec![stereo("A")];
+        assert!(matches!(
+            to_json(&rig),
+            Err(RigFileError::DuplicateHeadName { name }) if name == "A"
+        ));
+        rig.stereo_heads = vec![stereo("S")];
+        rig.stereo_heads[0].right.pose.rotation[(1, 1)] = 0.5;
+        match to_json(&rig) {
+            Err(RigFileError::NotARotation { device, .. }) => {
+                assert_eq!(device, "stereo_heads[0].right")
+            }
+            other => panic!("{other:?}"),
+        }
+        rig.stereo_heads = vec![stereo("S")];
+        rig.stereo_heads[0].left.intrinsics.fy = f64::NAN;
+        assert!(matches!(to_json(&rig), Err(RigFileError::NonFinite { .. })));
+        let text = to_json(&RigCalibration::single(head("A"))).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let mut v = v;
+        v["stereo_heads"] = serde_json::json!([{"name": "S"}]);
+        let err = parse_rig(&v.to_string()).unwrap_err().to_string();
+        assert!(err.contains("missing field `left`"), "{err}");
     }
 
     #[test]

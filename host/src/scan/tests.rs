@@ -17,6 +17,7 @@ fn rig(heads: usize, head_to_head: bool) -> RigCalibration {
             .map(|n| head(n))
             .collect(),
         head_to_head: head_to_head.then(Pose::identity),
+        stereo_heads: vec![],
     }
 }
 

@@ -109,6 +109,7 @@ pub fn twin_calibration(rig: &Rig, heads: usize) -> RigCalibration {
     RigCalibration {
         heads: heads_out,
         head_to_head,
+        stereo_heads: vec![],
     }
 }
 

@@ -217,6 +217,7 @@ pub fn calibrate_scene(
     let rig = RigCalibration {
         heads: heads.iter().map(|c| c.head.clone()).collect(),
         head_to_head: Some(head_to_head.a_to_b),
+        stereo_heads: vec![],
     };
     Ok(SceneCalibration {
         rig,
@@ -262,6 +263,7 @@ pub fn truth(rig: &Rig, names: [&str; 2]) -> Option<RigCalibration> {
     Some(RigCalibration {
         heads,
         head_to_head: Some(head_to_head),
+        stereo_heads: vec![],
     })
 }
 

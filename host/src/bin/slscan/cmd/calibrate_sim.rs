@@ -120,6 +120,7 @@ pub fn run(args: &SimOptions, head: &str, out: &Path, options: &HeadOptions) -> 
     let rig = RigCalibration {
         heads: calibrated,
         head_to_head,
+        stereo_heads: vec![],
     };
     write_rig(out, &rig).with_context(|| format!("writing {}", out.display()))?;
     say!("wrote {}", out.display());
