@@ -10,6 +10,7 @@
 //! the identity). With two heads, [`RigCalibration::head_to_head`] maps head 0's frame
 //! into head 1's. A rig may also hold stereo heads (two cameras and an uncalibrated
 //! projector, [`StereoHead`]), and then needs no projector-camera head at all.
+//! [`opencv`] reads and writes OpenCV's calibration files.
 
 pub mod board;
 pub mod bundle;
@@ -18,6 +19,7 @@ pub mod extrinsics;
 pub mod head;
 pub mod homography;
 pub mod lm;
+pub mod opencv;
 pub mod phase_file;
 mod pinhole;
 pub mod projector;
