@@ -19,6 +19,8 @@ enum Command {
     Patterns(cmd::patterns::Args),
     /// Calibrate cameras and projectors from checkerboard captures.
     Calibrate(cmd::calibrate::Args),
+    /// Import or export OpenCV calibration files (cv::FileStorage YAML/XML).
+    Calibration(cmd::calibration_io::Args),
     /// Reconstruct a point cloud from a folder of fringe images.
     Reconstruct(cmd::reconstruct::Args),
     /// Plan, capture and reconstruct a scan end to end.
@@ -43,6 +45,7 @@ fn main() -> std::process::ExitCode {
         Command::Board(args) => cmd::board::run(args),
         Command::Patterns(args) => cmd::patterns::run(args),
         Command::Calibrate(args) => cmd::calibrate::run(args),
+        Command::Calibration(args) => cmd::calibration_io::run(args),
         Command::Reconstruct(args) => cmd::reconstruct::run(args),
         Command::Scan(args) => cmd::scan::run(args),
         Command::Register(args) => cmd::register::run(args),

@@ -7,6 +7,7 @@ pub mod calibrate_scene;
 #[cfg(feature = "sim")]
 pub mod calibrate_sim;
 pub mod calibrate_sim_options;
+pub mod calibration_io;
 pub mod calibration_print;
 pub mod fuse;
 pub mod parse;
