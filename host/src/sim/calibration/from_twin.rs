@@ -11,7 +11,7 @@
 
 use hil_sim::twin::{Pinhole, Rig};
 
-use crate::calibration::{Distortion, Head, Intrinsics, PinholeModel, Pose};
+use crate::calibration::{Distortion, Head, Intrinsics, PinholeModel, Pose, StereoHead};
 
 /// A twin pose (`world_from_device`, an isometry) as slscan's world -> device [`Pose`].
 pub fn pose_from_twin(world_from_device: &hil_sim::twin::Pose) -> Pose {
@@ -71,10 +71,40 @@ pub fn head_from_twin(rig: &Rig, camera: usize, projector: usize, name: &str) ->
     })
 }
 
+/// Twin cameras `left` and `right` of `rig` as a stereo head in slscan's convention:
+/// the head frame is the left camera's (its pose the identity, the right pose left ->
+/// right, as OpenCV's `R`, `T`). The rig's projectors play no part: they only label
+/// the surface. Returns `None` when either index is out of range.
+///
+/// Twin world points map into this head frame with the left camera's twin pose,
+/// `pose_from_twin(&rig.cameras[left].model.world_from_device)`.
+pub fn stereo_head_from_twin(
+    rig: &Rig,
+    left: usize,
+    right: usize,
+    name: &str,
+) -> Option<StereoHead> {
+    let l = &rig.cameras.get(left)?.model;
+    let r = &rig.cameras.get(right)?.model;
+    let world_to_left = pose_from_twin(&l.world_from_device);
+    let world_to_right = pose_from_twin(&r.world_from_device);
+    Some(StereoHead {
+        name: name.to_string(),
+        left: PinholeModel {
+            pose: Pose::identity(),
+            ..pinhole_from_twin(l)
+        },
+        right: PinholeModel {
+            pose: world_to_right.compose(&world_to_left.inverse()),
+            ..pinhole_from_twin(r)
+        },
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hil_sim::twin::scenes::{dual_head, Detail};
+    use hil_sim::twin::scenes::{dual_head, stereo_head, Detail};
     use hil_sim::twin::V3;
     use nalgebra::Point3;
 
@@ -101,5 +131,27 @@ mod tests {
             }
         }
         assert!(head_from_twin(&rig, 2, 0, "A").is_none());
+    }
+
+    #[test]
+    fn a_stereo_head_projects_world_points_like_the_twin_cameras() {
+        let rig = stereo_head(&Detail {
+            camera: (64, 48),
+            projector: (80, 50),
+        });
+        let head = stereo_head_from_twin(&rig, 0, 1, "S").unwrap();
+        let to_head = pose_from_twin(&rig.cameras[0].model.world_from_device);
+        for w in [V3::new(-0.03, 0.02, 0.5), V3::new(0.05, -0.03, 0.55)] {
+            let x = to_head.apply(&Point3::from(w));
+            for (cam, twin) in [(&head.left, 0), (&head.right, 1)] {
+                let want = rig.cameras[twin].model.project(&w).unwrap();
+                let got = cam.project(&x).unwrap();
+                assert!((got.x - want[0]).abs() < 1e-9 && (got.y - want[1]).abs() < 1e-9);
+            }
+        }
+        // The right camera sits 170 mm away, on the left camera's right.
+        let c = head.right.centre_m();
+        assert!((c.coords.norm() - 0.17).abs() < 1e-9 && c.x > 0.16, "{c}");
+        assert!(stereo_head_from_twin(&rig, 0, 2, "S").is_none());
     }
 }
