@@ -1,13 +1,21 @@
 //! `slscan reconstruct`: a folder of fringe images + a rig file -> PLY and pictures.
 //!
-//! Frames are taken in file-name order: all steps of the finest period first, then the
-//! next period (`--periods`), columns first; with `--both`, the same again for rows.
+//! Frames are taken in file-name order. Without a description they are ours: all steps
+//! of the finest period first, then the next period (`--periods`), columns first; with
+//! `--both`, the same again for rows (the fused pipeline decodes them). A capture of
+//! another system is described by a manifest (`--manifest`, or `capture.json` in the
+//! frame folder) or a preset (`--preset`); see `slscan::capture`.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
 use slscan::calibration::read_rig;
+use slscan::capture::decode::{decode, AxisCoordinates};
+use slscan::capture::manifest::{read_manifest, FILE_NAME as MANIFEST_FILE};
+use slscan::capture::presets::{Preset, PresetOptions};
+use slscan::capture::triangulate::triangulate;
+use slscan::capture::CaptureSpec;
 use slscan::io::images::{list_images, load_set, save_bytes, ExposureLimits, ImageError};
 use slscan::io::npy::{write_npy_f32, write_npy_u8};
 use slscan::io::outputs::OutputSet;
@@ -15,7 +23,7 @@ use slscan::io::ply::write_ply;
 use slscan::io::report_html::{render, write_html, Page, PagePicture, Table};
 use slscan::pictures::{head_pictures, summarise_frames, HeadPictures, KINDS};
 use slscan::raster::Raster;
-use slscan::reconstruct::{Directions, ReconstructConfig, Reconstructor};
+use slscan::reconstruct::{Directions, ReconstructConfig, Reconstruction, Reconstructor};
 use slscan::unwrap::PixelStatus;
 
 /// Options of `slscan reconstruct`.
@@ -31,15 +39,27 @@ pub struct Args {
     /// Head to use (default: the first).
     #[arg(long)]
     head: Option<String>,
-    /// Fringe periods, projector pixels, finest first.
-    #[arg(long, value_delimiter = ',', default_values_t = [100.0, 110.0, 120.0])]
-    periods: Vec<f64>,
-    /// Phase steps per period.
-    #[arg(long, default_value_t = 4)]
-    steps: usize,
+    /// Fringe periods, projector pixels, finest first [default: 100,110,120; the
+    /// preset's with --preset].
+    #[arg(long, value_delimiter = ',')]
+    periods: Option<Vec<f64>>,
+    /// Phase steps per period [default: 4; the preset's with --preset].
+    #[arg(long)]
+    steps: Option<usize>,
     /// Frames hold columns then rows (two-ray triangulation).
     #[arg(long)]
     both: bool,
+    /// The capture's pattern family: slscan, heterodyne (any --steps >= 3 and
+    /// --periods), sinus-comple-gray (SLMaster / OpenCV SinusCompleGrayCodePattern:
+    /// 12 steps of one 32 px period, phase 2 pi (u mod P)/P - pi, then n + 1 Gray
+    /// bits), opencv-graycode (OpenCV GrayCodePattern with inverses, then white and
+    /// black).
+    #[arg(long, conflicts_with = "manifest")]
+    preset: Option<String>,
+    /// Capture manifest (JSON) describing the frames; default: capture.json in the
+    /// --images folder when there is one.
+    #[arg(long)]
+    manifest: Option<PathBuf>,
     /// Smallest usable modulation (frame units, 0..1).
     #[arg(long, default_value_t = 0.05)]
     min_modulation: f32,
@@ -118,18 +138,30 @@ fn page_path(cloud: &Path) -> PathBuf {
 
 /// What can be refused before any image is read.
 fn check_args(args: &Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        !args.periods.is_empty(),
-        "--periods: give at least one period"
-    );
-    if let Some(p) = args.periods.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
-        anyhow::bail!("--periods: {p} is not a positive number of projector pixels");
+    if let Some(periods) = &args.periods {
+        anyhow::ensure!(!periods.is_empty(), "--periods: give at least one period");
+        if let Some(p) = periods.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
+            anyhow::bail!("--periods: {p} is not a positive number of projector pixels");
+        }
     }
-    anyhow::ensure!(
-        args.steps >= 3,
-        "--steps {}: phase shifting needs at least 3",
-        args.steps
-    );
+    if let Some(steps) = args.steps {
+        anyhow::ensure!(
+            steps >= 3,
+            "--steps {steps}: phase shifting needs at least 3"
+        );
+    }
+    if args.manifest.is_some() {
+        for (given, flag) in [
+            (args.periods.is_some(), "--periods"),
+            (args.steps.is_some(), "--steps"),
+            (args.both, "--both"),
+        ] {
+            anyhow::ensure!(
+                !given,
+                "{flag} conflicts with --manifest: the manifest describes the frames"
+            );
+        }
+    }
     anyhow::ensure!(
         !args.out.is_dir(),
         "--out {} is a folder; give the PLY file to write",
@@ -158,56 +190,24 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
             .with_context(|| format!("rig {} has no head named {name:?}", args.rig.display()))?,
         None => &rig.heads[0],
     };
-    let mut config = ReconstructConfig::new(args.periods.clone());
-    config.steps = args.steps;
-    config.min_modulation = args.min_modulation;
-    config.noise_sigma = args.noise_sigma;
-    config.shot_noise_share = args.shot_noise_share;
-    config.directions = if args.both {
-        Directions::Both
-    } else {
-        Directions::Columns
-    };
-    let per_direction = config.frames_per_direction();
-    let expected = per_direction * if args.both { 2 } else { 1 };
+    let projector = (head.projector.width_px, head.projector.height_px);
+    let decoding = decoding(args, projector)?;
     let paths = list_images(&args.images)?;
-    if paths.len() != expected {
-        return Err(ImageError::MissingFrames {
-            dir: args.images.clone(),
-            expected,
-            found: paths.len(),
-        }
-        .into());
-    }
-    let limits = ExposureLimits {
-        max_saturated_percent: args.max_saturated_percent,
-        ..ExposureLimits::default()
-    };
     let mut timings = Vec::new();
-    let clock = Instant::now();
-    let frames = load_set(&paths, &limits)?;
-    lap(&mut timings, "load", clock);
-    let refs: Vec<&Raster<f32>> = frames.iter().collect();
-    let clock = Instant::now();
-    let rec = Reconstructor::from_head(head, config)?;
-    let (u, v) = refs.split_at(per_direction);
-    // --verbose, columns only: the staged pipeline (same result, timed per
-    // stage); otherwise the fused single pass.
-    let out = if args.verbose && !args.both {
-        let (out, t) = rec.reconstruct_staged(u)?;
-        for (stage, s) in [
-            ("phase", t.phase_s),
-            ("unwrap", t.unwrap_s),
-            ("triangulate", t.triangulate_s),
-            ("cloud", t.cloud_s),
-        ] {
-            timings.push((stage.to_string(), s * 1e3));
+    let (out, frames, described) = match decoding {
+        Decoding::Ours(config) => {
+            let (out, frames) = reconstruct_ours(args, head, config, &paths, &mut timings)?;
+            (out, frames, None)
         }
-        out
-    } else {
-        let out = rec.reconstruct(u, args.both.then_some(v))?;
-        lap(&mut timings, "reconstruct", clock);
-        out
+        Decoding::Described(spec) => {
+            let (out, frames, axes) =
+                reconstruct_described(args, head, &spec, &paths, &mut timings)?;
+            (out, frames, Some((spec, axes)))
+        }
+    };
+    let finest_period_px = match &described {
+        Some((_, axes)) => axes[0].reference_period_px,
+        None => args.periods.as_ref().map_or(100.0, |p| p[0]),
     };
     anyhow::ensure!(
         !out.cloud.is_empty(),
@@ -221,7 +221,7 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
     let pictures = head_pictures(&HeadPictures {
         head: &format!("head {}", head.name),
         reconstruction: &out,
-        finest_period_px: args.periods[0],
+        finest_period_px,
         frames: &summarise_frames(&frames),
         error_m: None,
     })?;
@@ -267,6 +267,7 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
                     "rig".into(),
                     format!("{}, head {}", args.rig.display(), head.name),
                 ),
+                ("capture".into(), capture_row(described.as_ref())),
                 ("points".into(), out.cloud.len().to_string()),
                 (
                     "valid pixels".into(),
@@ -281,7 +282,10 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
                     out.count(PixelStatus::Unreliable).to_string(),
                 ),
             ],
-        }],
+        }]
+        .into_iter()
+        .chain(described.as_ref().map(|(_, axes)| checks_table(axes)))
+        .collect(),
         timings_ms: timings.clone(),
         pictures: page_pictures,
         text: None,
@@ -299,6 +303,183 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// How the frames will be decoded.
+enum Decoding {
+    /// Ours, through the fused pipeline.
+    Ours(ReconstructConfig),
+    /// A described capture (manifest or preset).
+    Described(CaptureSpec),
+}
+
+/// The manifest (given, or `capture.json` beside the frames), else the preset, else
+/// ours from `--periods`, `--steps` and `--both`.
+fn decoding(args: &Args, projector: (u32, u32)) -> anyhow::Result<Decoding> {
+    let beside = args.images.join(MANIFEST_FILE);
+    let manifest = args
+        .manifest
+        .clone()
+        .or_else(|| beside.is_file().then_some(beside));
+    if let Some(path) = manifest {
+        for (given, flag) in [
+            (args.periods.is_some(), "--periods"),
+            (args.steps.is_some(), "--steps"),
+            (args.both, "--both"),
+            (args.preset.is_some(), "--preset"),
+        ] {
+            anyhow::ensure!(
+                !given,
+                "{flag} conflicts with the capture manifest {}, which describes the frames",
+                path.display()
+            );
+        }
+        return Ok(Decoding::Described(read_manifest(&path, projector)?));
+    }
+    if let Some(name) = &args.preset {
+        let options = PresetOptions {
+            steps: args.steps,
+            periods_px: args.periods.clone(),
+            both: args.both,
+        };
+        let mut spec = Preset::from_name(name)
+            .map_err(slscan::capture::CaptureError::from)?
+            .spec(&options, projector)?;
+        spec.thresholds.min_modulation = args.min_modulation;
+        spec.validate(projector)?;
+        return Ok(Decoding::Described(spec));
+    }
+    let mut config = ReconstructConfig::new(
+        args.periods
+            .clone()
+            .unwrap_or_else(|| vec![100.0, 110.0, 120.0]),
+    );
+    config.steps = args.steps.unwrap_or(4);
+    config.min_modulation = args.min_modulation;
+    config.noise_sigma = args.noise_sigma;
+    config.shot_noise_share = args.shot_noise_share;
+    config.directions = if args.both {
+        Directions::Both
+    } else {
+        Directions::Columns
+    };
+    Ok(Decoding::Ours(config))
+}
+
+/// Ours: the fused pipeline (or, with `--verbose` and columns only, the staged one,
+/// timed per stage; the results are the same).
+fn reconstruct_ours(
+    args: &Args,
+    head: &slscan::calibration::Head,
+    config: ReconstructConfig,
+    paths: &[PathBuf],
+    timings: &mut Vec<(String, f64)>,
+) -> anyhow::Result<(Reconstruction, Vec<Raster<f32>>)> {
+    let per_direction = config.frames_per_direction();
+    let expected = per_direction * if args.both { 2 } else { 1 };
+    if paths.len() != expected {
+        return Err(ImageError::MissingFrames {
+            dir: args.images.clone(),
+            expected,
+            found: paths.len(),
+        }
+        .into());
+    }
+    let limits = ExposureLimits {
+        max_saturated_percent: args.max_saturated_percent,
+        ..ExposureLimits::default()
+    };
+    let clock = Instant::now();
+    let frames = load_set(paths, &limits)?;
+    lap(timings, "load", clock);
+    let refs: Vec<&Raster<f32>> = frames.iter().collect();
+    let clock = Instant::now();
+    let rec = Reconstructor::from_head(head, config)?;
+    let (u, v) = refs.split_at(per_direction);
+    let out = if args.verbose && !args.both {
+        let (out, t) = rec.reconstruct_staged(u)?;
+        for (stage, s) in [
+            ("phase", t.phase_s),
+            ("unwrap", t.unwrap_s),
+            ("triangulate", t.triangulate_s),
+            ("cloud", t.cloud_s),
+        ] {
+            timings.push((stage.to_string(), s * 1e3));
+        }
+        out
+    } else {
+        let out = rec.reconstruct(u, args.both.then_some(v))?;
+        lap(timings, "reconstruct", clock);
+        out
+    };
+    Ok((out, frames))
+}
+
+/// A described capture: the frame count checked before any frame is read, then
+/// decode (with the self-checks) and triangulate.
+fn reconstruct_described(
+    args: &Args,
+    head: &slscan::calibration::Head,
+    spec: &CaptureSpec,
+    paths: &[PathBuf],
+    timings: &mut Vec<(String, f64)>,
+) -> anyhow::Result<(Reconstruction, Vec<Raster<f32>>, Vec<AxisCoordinates>)> {
+    spec.check_frame_count(paths.len())
+        .with_context(|| format!("frames in {}", args.images.display()))?;
+    // White, black and Gray frames may be dark or saturate as a whole: the
+    // per-pixel masks judge them, not the whole-frame exposure check.
+    let limits = ExposureLimits {
+        max_saturated_percent: 100.0,
+        min_range: 0.0,
+        ..ExposureLimits::default()
+    };
+    let clock = Instant::now();
+    let frames = load_set(paths, &limits)?;
+    lap(timings, "load", clock);
+    let refs: Vec<&Raster<f32>> = frames.iter().collect();
+    let projector = (head.projector.width_px, head.projector.height_px);
+    let clock = Instant::now();
+    let axes = decode(spec, &refs, projector, args.noise_sigma)?;
+    lap(timings, "decode", clock);
+    let clock = Instant::now();
+    let out = triangulate(head, &axes, true)?;
+    lap(timings, "triangulate", clock);
+    Ok((out, frames, axes))
+}
+
+/// The capture's description for the page.
+fn capture_row(described: Option<&(CaptureSpec, Vec<AxisCoordinates>)>) -> String {
+    match described {
+        None => "ours (heterodyne, fused pipeline)".into(),
+        Some((spec, _)) => format!(
+            "{}: {}; unwrapping {}",
+            spec.name,
+            spec.breakdown(),
+            spec.unwrapping.name()
+        ),
+    }
+}
+
+/// The self-checks as measured, for the page.
+fn checks_table(axes: &[AxisCoordinates]) -> Table {
+    Table {
+        heading: "Convention self-checks (all passed)".into(),
+        rows: axes
+            .iter()
+            .flat_map(|a| &a.checks)
+            .map(|c| {
+                (
+                    format!("{}: {}", slscan::capture::axis_name(c.axis), c.check),
+                    format!(
+                        "{:.2} % of {} (limit {:.0} %)",
+                        100.0 * c.share,
+                        c.pixels,
+                        100.0 * c.limit
+                    ),
+                )
+            })
+            .collect(),
+    }
 }
 
 /// `--write-phase`: the absolute phase, modulation and status maps as `.npy`.
