@@ -456,7 +456,7 @@ mod tests {
                 r#"{"format": "slscan-capture", "version": 1, "sequence": [
                     {"kind": "fringes", "axis": "columns", "steps": 2, "periods_px": [32]}],
                     "unwrapping": {"method": "none"}}"#,
-                "at least 3",
+                "3 to 256",
             ),
             (
                 r#"{"format": "slscan-capture", "version": 1, "sequence": [

@@ -174,7 +174,7 @@ pub enum CaptureError {
     #[error("the capture description lists no frames")]
     EmptySequence,
     /// A fringe set with fewer than 3 steps.
-    #[error("fringe set {set}: {steps} steps; phase shifting needs at least 3")]
+    #[error("fringe set {set}: {steps} steps; phase shifting needs 3 to {MAX_STEPS}")]
     Steps {
         /// Index of the set in the sequence.
         set: usize,
@@ -182,7 +182,7 @@ pub enum CaptureError {
         steps: usize,
     },
     /// A period that is not a positive finite number, or a set without periods.
-    #[error("fringe set {set}: periods {periods_px:?} must be positive numbers of projector pixels (at least one)")]
+    #[error("fringe set {set}: periods {periods_px:?} must be 1 to {MAX_SET_PERIODS} positive numbers of projector pixels")]
     Periods {
         /// Index of the set in the sequence.
         set: usize,
@@ -619,14 +619,23 @@ pub fn extent(axis: ProjectorAxis, projector: (u32, u32)) -> u32 {
     }
 }
 
+/// Most steps a fringe set may have (a description is read from outside: its counts
+/// must not overflow or allocate without bound).
+pub const MAX_STEPS: usize = 256;
+/// Most periods one fringe set may list.
+pub const MAX_SET_PERIODS: usize = 16;
+
 fn validate_fringes(set: usize, s: &FringeSet) -> Result<(), CaptureError> {
-    if s.steps < 3 {
+    if !(3..=MAX_STEPS).contains(&s.steps) {
         return Err(CaptureError::Steps {
             set,
             steps: s.steps,
         });
     }
-    if s.periods_px.is_empty() || s.periods_px.iter().any(|p| !(p.is_finite() && *p > 0.0)) {
+    if s.periods_px.is_empty()
+        || s.periods_px.len() > MAX_SET_PERIODS
+        || s.periods_px.iter().any(|p| !(p.is_finite() && *p > 0.0))
+    {
         return Err(CaptureError::Periods {
             set,
             periods_px: s.periods_px.clone(),
