@@ -204,6 +204,7 @@ fn decode_axis(
         Unwrapping::Heterodyne | Unwrapping::Pdm => {
             // Finest first, as both methods want; the maps follow their periods.
             periods.sort_by(|a, b| a.period_px.total_cmp(&b.period_px));
+            mask_noisy_orders(spec, &periods, &mut mask, extent, noise_sigma)?;
             let abs = unwrap_temporal(spec, &periods, &mask, extent)?;
             let (share, pixels) = checks::wrong_order_share(&abs.status, &mask);
             let result = CheckResult {
@@ -393,6 +394,43 @@ fn unwrap_temporal(
         _ => Heterodyne::new(&list, f64::from(extent), std::f64::consts::FRAC_PI_2)?
             .unwrap(&maps, Some(mask))?,
     })
+}
+
+/// Standard deviations between a pixel's phase noise and a miscounted order, as the
+/// fused pipeline's default ([`crate::reconstruct::ReconstructConfig::order_sigmas`]).
+const ORDER_SIGMAS: f64 = 5.0;
+
+/// Masks pixels too noisy to count fringe orders: a miscount can pass the methods'
+/// residual votes, so a phase noise (the Cramer-Rao bound at the pixel's modulation)
+/// within [`ORDER_SIGMAS`] of one is refused beforehand, as the fused pipeline does.
+fn mask_noisy_orders(
+    spec: &CaptureSpec,
+    periods: &[&PeriodPhase],
+    mask: &mut Raster<bool>,
+    extent: u32,
+    noise_sigma: f32,
+) -> Result<(), CaptureError> {
+    let list: Vec<f64> = periods.iter().map(|p| p.period_px).collect();
+    let max_sigma_rad = match spec.unwrapping {
+        Unwrapping::Pdm => {
+            let ints = super::integer_periods(&list).expect("validated whole periods");
+            Pdm::new(&ints, f64::from(extent))?.max_phase_sigma_rad(ORDER_SIGMAS)
+        }
+        _ => {
+            let h = Heterodyne::new(&list, f64::from(extent), std::f64::consts::FRAC_PI_2)?;
+            std::f64::consts::PI / (h.order_noise_gain() * ORDER_SIGMAS)
+        }
+    } as f32;
+    for (i, keep) in mask.data.iter_mut().enumerate() {
+        let noisy = periods.iter().any(|p| {
+            let sigma = noise_sigma * (2.0 / p.steps as f32).sqrt() / p.modulation.data[i];
+            !(sigma <= max_sigma_rad)
+        });
+        if noisy {
+            *keep = false;
+        }
+    }
+    Ok(())
 }
 
 /// Which alternative convention makes the temporal unwrapping agree (tried on a
