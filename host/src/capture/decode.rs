@@ -424,7 +424,7 @@ fn mask_noisy_orders(
     for (i, keep) in mask.data.iter_mut().enumerate() {
         let noisy = periods.iter().any(|p| {
             let sigma = noise_sigma * (2.0 / p.steps as f32).sqrt() / p.modulation.data[i];
-            !(sigma <= max_sigma_rad)
+            sigma.is_nan() || sigma > max_sigma_rad
         });
         if noisy {
             *keep = false;
@@ -432,6 +432,9 @@ fn mask_noisy_orders(
     }
     Ok(())
 }
+
+/// One pixel's wrapped phases (finest first) -> absolute phase of the finest period.
+type PixelUnwrapper = dyn Fn(&[f32]) -> Option<f32>;
 
 /// Which alternative convention makes the temporal unwrapping agree (tried on a
 /// sample), as the cause to report.
@@ -444,7 +447,7 @@ fn diagnose_temporal(
     let pixels: Vec<usize> = (0..mask.data.len()).filter(|&i| mask.data[i]).collect();
     let pixels = checks::sample(&pixels, ALTERNATIVE_SAMPLE);
     let list: Vec<f64> = periods.iter().map(|p| p.period_px).collect();
-    let unwrapper: Box<dyn Fn(&[f32]) -> Option<f32>> = match spec.unwrapping {
+    let unwrapper: Box<PixelUnwrapper> = match spec.unwrapping {
         Unwrapping::Pdm => match super::integer_periods(&list)
             .and_then(|ints| Pdm::new(&ints, f64::from(extent)).ok())
         {

@@ -46,7 +46,7 @@ pub fn triangulate(
         background: main.background.data.clone(),
     };
     let phase_scale = (std::f64::consts::TAU / main.reference_period_px) as f32;
-    let results: Vec<(PixelStatus, Option<([f32; 3], f32, f32)>)> = (0..n)
+    let results: Vec<(PixelStatus, Option<Hit>)> = (0..n)
         .into_par_iter()
         .map(|i| pixel(&triangulator, main, columns, rows, i))
         .collect();
@@ -74,14 +74,17 @@ pub fn triangulate(
     ))
 }
 
-/// One pixel: its status and, when valid, (point, depth, sigma along the ray).
+/// A triangulated pixel: point (metres), depth, sigma along the ray.
+type Hit = ([f32; 3], f32, f32);
+
+/// One pixel: its status and, when valid, its hit.
 fn pixel(
     t: &Triangulator,
     main: &AxisCoordinates,
     columns: Option<&AxisCoordinates>,
     rows: Option<&AxisCoordinates>,
     i: usize,
-) -> (PixelStatus, Option<([f32; 3], f32, f32)>) {
+) -> (PixelStatus, Option<Hit>) {
     let worst = [columns, rows]
         .into_iter()
         .flatten()
