@@ -401,6 +401,40 @@ fn reconstruct_reads_a_manifest_or_a_preset_and_refuses_bad_descriptions() {
         "{err}"
     );
 
+    // Frames of another heterodyne system (phase 2 pi u / P - pi) given to our default
+    // decoding: the fused pipeline's order checks fail, and the cause is named.
+    let dir = tmp("cli-ours-other-origin");
+    write_rig(
+        &dir.join("rig.json"),
+        &RigCalibration::single(t.head.clone()),
+    )
+    .unwrap();
+    let mut other = Preset::Slscan
+        .spec(
+            &PresetOptions {
+                periods_px: Some(vec![20.0, 22.0, 24.0]),
+                ..Default::default()
+            },
+            PROJECTOR,
+        )
+        .unwrap();
+    if let Frames::Fringes(f) = &mut other.sequence[0] {
+        f.phase_offset_rad = -std::f64::consts::PI;
+    }
+    let images = write_capture(&dir, &render(&t, &other, 31), None);
+    let out = reconstruct(
+        &dir,
+        &images,
+        &["--periods", "20,22,24", "--noise-sigma", &noise],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    println!("ours with another heterodyne system's frames: {err}");
+    assert!(
+        !out.status.success() && err.contains("phase origin"),
+        "{err}"
+    );
+    assert!(!dir.join("cloud.ply").exists());
+
     // The wrong phase origin: refused with the cause, and no cloud left behind.
     let dir = tmp("cli-wrong");
     write_rig(

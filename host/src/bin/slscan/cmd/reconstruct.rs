@@ -394,6 +394,11 @@ fn reconstruct_ours(
     lap(timings, "load", clock);
     let refs: Vec<&Raster<f32>> = frames.iter().collect();
     let clock = Instant::now();
+    let ours = PresetOptions {
+        steps: Some(config.steps),
+        periods_px: Some(config.periods_px.clone()),
+        both: args.both,
+    };
     let rec = Reconstructor::from_head(head, config)?;
     let (u, v) = refs.split_at(per_direction);
     let out = if args.verbose && !args.both {
@@ -412,7 +417,45 @@ fn reconstruct_ours(
         lap(timings, "reconstruct", clock);
         out
     };
+    explain_failed_orders(head, &out, &ours, &refs, args.noise_sigma)?;
     Ok((out, frames))
+}
+
+/// Share of the modulated pixels whose orders may fail in a capture of ours before
+/// the capture is suspected of another convention.
+const SUSPECT_UNRELIABLE: f64 = 0.25;
+
+/// When most modulated pixels failed the fused pipeline's order checks, the frames
+/// are likely of another convention: the described decoder's self-checks then name
+/// the cause (phase origin, direction, the periods' order) instead of a near-empty
+/// cloud. A capture that passes them keeps the fused result.
+fn explain_failed_orders(
+    head: &slscan::calibration::Head,
+    out: &Reconstruction,
+    ours: &PresetOptions,
+    frames: &[&Raster<f32>],
+    noise_sigma: f32,
+) -> anyhow::Result<()> {
+    let unreliable = out.count(PixelStatus::Unreliable);
+    let usable = unreliable + out.count(PixelStatus::Valid);
+    if usable == 0 || (unreliable as f64) <= SUSPECT_UNRELIABLE * usable as f64 {
+        return Ok(());
+    }
+    let projector = (head.projector.width_px, head.projector.height_px);
+    let spec = Preset::Slscan.spec(ours, projector)?;
+    decode(&spec, frames, projector, noise_sigma).with_context(|| {
+        format!(
+            "{unreliable} of {usable} modulated pixels failed the fringe-order checks, \
+             so the frames were checked for another convention"
+        )
+    })?;
+    tracing::warn!(
+        unreliable,
+        usable,
+        "most modulated pixels failed the fringe-order checks, though the frames follow \
+         our convention: too noisy for these periods?"
+    );
+    Ok(())
 }
 
 /// A described capture: the frame count checked before any frame is read, then
