@@ -13,6 +13,7 @@ pub mod fuse;
 pub mod parse;
 pub mod patterns;
 pub mod reconstruct;
+pub mod reconstruct_stereo;
 pub mod register;
 pub mod scan;
 pub mod transcript;

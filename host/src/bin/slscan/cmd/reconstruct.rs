@@ -16,6 +16,8 @@ use slscan::capture::manifest::{read_manifest, FILE_NAME as MANIFEST_FILE};
 use slscan::capture::presets::{Preset, PresetOptions};
 use slscan::capture::triangulate::triangulate;
 use slscan::capture::CaptureSpec;
+
+use super::reconstruct_stereo::{reconstruct_stereo, StereoInputs};
 use slscan::io::images::{list_images, load_set, save_bytes, ExposureLimits, ImageError};
 use slscan::io::npy::{write_npy_f32, write_npy_u8};
 use slscan::io::outputs::OutputSet;
@@ -60,6 +62,15 @@ pub struct Args {
     /// --images folder when there is one.
     #[arg(long)]
     manifest: Option<PathBuf>,
+    /// The right camera's frames of a stereo head (two calibrated cameras, an
+    /// uncalibrated projector; the rig's stereo head, or --head): --images holds the
+    /// left camera's frames, the same sequence.
+    #[arg(long, value_name = "DIR")]
+    stereo: Option<PathBuf>,
+    /// The projector's size, pixels (needed with --stereo: a stereo head's projector
+    /// is not calibrated, but its size bounds the decoded coordinates).
+    #[arg(long, value_name = "WxH", value_parser = super::parse::parse_size, requires = "stereo")]
+    projector_size: Option<(u32, u32)>,
     /// Smallest usable modulation (frame units, 0..1).
     #[arg(long, default_value_t = 0.05)]
     min_modulation: f32,
@@ -184,25 +195,71 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
 
 fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
     let rig = read_rig(&args.rig)?;
-    let head = match &args.head {
-        Some(name) => rig
-            .head(name)
-            .with_context(|| format!("rig {} has no head named {name:?}", args.rig.display()))?,
-        None => &rig.heads[0],
-    };
-    let projector = (head.projector.width_px, head.projector.height_px);
-    let decoding = decoding(args, projector)?;
-    let paths = list_images(&args.images)?;
     let mut timings = Vec::new();
-    let (out, frames, described) = match decoding {
-        Decoding::Ours(config) => {
-            let (out, frames) = reconstruct_ours(args, head, config, &paths, &mut timings)?;
-            (out, frames, None)
+    let (head_name, out, frames, described) = match &args.stereo {
+        Some(right) => {
+            let head = match &args.head {
+                Some(name) => rig.stereo_head(name).with_context(|| {
+                    format!(
+                        "rig {} has no stereo head named {name:?}",
+                        args.rig.display()
+                    )
+                })?,
+                None => rig.stereo_heads.first().with_context(|| {
+                    format!("--stereo: rig {} has no stereo head", args.rig.display())
+                })?,
+            };
+            let projector = args
+                .projector_size
+                .context("--stereo needs --projector-size WxH (the projector is not calibrated)")?;
+            let spec = match decoding(args, projector)? {
+                Decoding::Described(spec) => spec,
+                Decoding::Ours(config) => Preset::Slscan.spec(
+                    &PresetOptions {
+                        steps: Some(config.steps),
+                        periods_px: Some(config.periods_px),
+                        both: args.both,
+                    },
+                    projector,
+                )?,
+            };
+            let inputs = StereoInputs {
+                head,
+                spec: &spec,
+                left: &args.images,
+                right,
+                projector,
+                noise_sigma: args.noise_sigma,
+            };
+            let (out, frames, axes) = reconstruct_stereo(&inputs, &mut timings)?;
+            (head.name.clone(), out, frames, Some((spec, axes)))
         }
-        Decoding::Described(spec) => {
-            let (out, frames, axes) =
-                reconstruct_described(args, head, &spec, &paths, &mut timings)?;
-            (out, frames, Some((spec, axes)))
+        None => {
+            let head = match &args.head {
+                Some(name) => rig.head(name).with_context(|| {
+                    format!("rig {} has no head named {name:?}", args.rig.display())
+                })?,
+                None => rig.heads.first().with_context(|| {
+                    format!(
+                        "rig {} has no projector head (a stereo head's frames need --stereo)",
+                        args.rig.display()
+                    )
+                })?,
+            };
+            let projector = (head.projector.width_px, head.projector.height_px);
+            let decoding = decoding(args, projector)?;
+            let paths = list_images(&args.images)?;
+            match decoding {
+                Decoding::Ours(config) => {
+                    let (out, frames) = reconstruct_ours(args, head, config, &paths, &mut timings)?;
+                    (head.name.clone(), out, frames, None)
+                }
+                Decoding::Described(spec) => {
+                    let (out, frames, axes) =
+                        reconstruct_described(args, head, &spec, &paths, &mut timings)?;
+                    (head.name.clone(), out, frames, Some((spec, axes)))
+                }
+            }
         }
     };
     let finest_period_px = match &described {
@@ -219,7 +276,7 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
     );
     let clock = Instant::now();
     let pictures = head_pictures(&HeadPictures {
-        head: &format!("head {}", head.name),
+        head: &format!("head {head_name}"),
         reconstruction: &out,
         finest_period_px,
         frames: &summarise_frames(&frames),
@@ -265,7 +322,7 @@ fn reconstruct_and_write(args: &Args) -> anyhow::Result<()> {
                 ),
                 (
                     "rig".into(),
-                    format!("{}, head {}", args.rig.display(), head.name),
+                    format!("{}, head {head_name}", args.rig.display()),
                 ),
                 ("capture".into(), capture_row(described.as_ref())),
                 ("points".into(), out.cloud.len().to_string()),
@@ -543,7 +600,7 @@ fn write_maps(dir: &Path, out: &slscan::reconstruct::Reconstruction) -> anyhow::
 }
 
 /// Logs a stage's time and keeps it for the page.
-fn lap(timings: &mut Vec<(String, f64)>, stage: &str, start: Instant) {
+pub(super) fn lap(timings: &mut Vec<(String, f64)>, stage: &str, start: Instant) {
     let ms = start.elapsed().as_secs_f64() * 1e3;
     tracing::info!(stage, ms = format_args!("{ms:.0}"), "stage done");
     timings.push((stage.to_string(), ms));
