@@ -160,3 +160,91 @@ fn frame_counts_and_sizes_are_checked_before_decoding() {
         Err(CaptureError::Phase(_))
     ));
 }
+
+/// A one-axis description with the given fringe sets and unwrapping.
+fn described(sets: Vec<FringeSet>, unwrapping: Unwrapping) -> CaptureSpec {
+    CaptureSpec {
+        name: "manifest".into(),
+        sequence: sets.into_iter().map(Frames::Fringes).collect(),
+        unwrapping,
+        thresholds: Thresholds::default(),
+        checks: CheckLimits::default(),
+    }
+}
+
+fn columns(steps: usize, periods_px: Vec<f64>) -> FringeSet {
+    FringeSet {
+        axis: ProjectorAxis::Column,
+        steps,
+        periods_px,
+        phase_offset_rad: 0.0,
+        phase_sign: 1,
+        shift_sign: 1,
+    }
+}
+
+#[test]
+fn pdm_quality_guided_and_no_unwrapping_decode_to_the_pixel() {
+    let cases = [
+        described(vec![columns(5, vec![7.0, 9.0, 11.0])], Unwrapping::Pdm),
+        // Seed at column 100: order floor(100 / 24 + 1/2) = 4 in (-pi, pi] wrapping.
+        described(
+            vec![columns(4, vec![24.0])],
+            Unwrapping::QualityGuided {
+                seed: (100, 10),
+                order: 4,
+            },
+        ),
+        described(vec![columns(4, vec![400.0])], Unwrapping::None),
+        // Two sets of the heterodyne, one frame order each, with a reversed shift
+        // direction on the second, described as such.
+        described(
+            vec![columns(4, vec![20.0]), {
+                let mut s = columns(3, vec![22.0, 24.0]);
+                s.shift_sign = -1;
+                s
+            }],
+            Unwrapping::Heterodyne,
+        ),
+    ];
+    for spec in cases {
+        let axes = decoded(&spec, &frames(&spec)).unwrap();
+        let a = &axes[0];
+        let (w, h) = a.coord_px.size();
+        for y in 0..h {
+            for x in 0..w {
+                assert_eq!(
+                    *a.status.at(x, y),
+                    PixelStatus::Valid,
+                    "{:?} ({x}, {y})",
+                    spec.unwrapping
+                );
+                let e = (a.coord_px.at(x, y) - x as f32).abs();
+                assert!(e < 2e-3, "{:?} ({x}, {y}): {e}", spec.unwrapping);
+            }
+        }
+    }
+}
+
+#[test]
+fn descriptions_that_cannot_unwrap_are_refused_before_decoding() {
+    // One period with heterodyne, a period shorter than the projector without
+    // unwrapping, Gray blocks wider than half the period.
+    let het = described(vec![columns(4, vec![20.0])], Unwrapping::Heterodyne);
+    let none = described(vec![columns(4, vec![100.0])], Unwrapping::None);
+    let mut gray = described(vec![columns(4, vec![20.0])], Unwrapping::GrayCode);
+    gray.sequence.push(Frames::Gray(GraySet {
+        axis: ProjectorAxis::Column,
+        bits: 5,
+        block_px: 16,
+        inverse: false,
+    }));
+    for (spec, want) in [
+        (het, "heterodyne"),
+        (none, "at least as long"),
+        (gray, "half the period"),
+    ] {
+        let err = spec.validate(PROJECTOR).unwrap_err().to_string();
+        assert!(err.contains(want), "{err}");
+    }
+}
