@@ -10,6 +10,7 @@
 //! `import` maps OpenCV's keys and conventions onto our models and checks them
 //! (finite, proper rotations, the direction of `R, T`); `export` goes the other way.
 
+mod error;
 pub mod export;
 pub mod import;
 pub mod storage;

@@ -265,6 +265,16 @@ pub fn parse(bytes: &[u8]) -> Result<Storage, StorageError> {
     }
 }
 
+/// Reads FileStorage YAML text (the `%YAML` directive optional).
+pub fn parse_yaml(text: &str) -> Result<Storage, StorageError> {
+    super::yaml::parse(text)
+}
+
+/// Reads FileStorage XML text.
+pub fn parse_xml(text: &str) -> Result<Storage, StorageError> {
+    super::xml::parse(text)
+}
+
 /// The format a file name asks for: `.xml` -> XML, `.yml`/`.yaml` -> YAML, else `None`.
 pub fn format_of(path: &std::path::Path) -> Option<Format> {
     let ext = path.extension()?.to_str()?.to_ascii_lowercase();
