@@ -4,7 +4,7 @@
 //!
 //! Set up once per head: every left pixel's rectified position (undistorted, rotated,
 //! projected), and for every pixel of the rectified right grid the original, distorted
-//! right pixel it samples (its top-left neighbour and bilinear weights).
+//! right pixel it samples (its top-left neighbour and the fractions between neighbours).
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use rayon::prelude::*;
@@ -41,8 +41,8 @@ pub struct Rectification {
     /// Per left pixel, row-major: rectified grid x and y (NaN where it has no ray).
     left_x: Vec<f32>,
     left_y: Vec<f32>,
-    /// Per rectified grid pixel: index of the top-left of the four right pixels it
-    /// samples (`u32::MAX` where outside the right image) and its bilinear fractions.
+    /// Per rectified grid pixel: index of the top-left of the four right pixels nearest
+    /// its source (`u32::MAX` where it has none) and the fractions between them.
     right_base: Vec<u32>,
     right_frac: Vec<[f32; 2]>,
 }
@@ -213,8 +213,8 @@ fn check_camera(c: &CameraModel, camera: Side) -> Result<(), StereoError> {
     let d = &c.distortion;
     let t = &c.pose.translation_m;
     let fields = [
-        ("width_px", f64::from(c.width_px), c.width_px >= 2),
-        ("height_px", f64::from(c.height_px), c.height_px >= 2),
+        ("width_px", f64::from(c.width_px), c.width_px >= 4),
+        ("height_px", f64::from(c.height_px), c.height_px >= 4),
         ("fx", k.fx, k.fx.is_finite() && k.fx > 0.0),
         ("fy", k.fy, k.fy.is_finite() && k.fy > 0.0),
         ("cx", k.cx, k.cx.is_finite()),
@@ -309,9 +309,10 @@ fn left_maps(
     (xs, ys)
 }
 
-/// Every rectified grid pixel's source in the right image: the top-left neighbour's
-/// index and the bilinear fractions (`u32::MAX` where the source is off the image, or
-/// where the distortion polynomial has folded over).
+/// Every rectified grid pixel's source in the right image: the index of the top-left of
+/// its four nearest pixels and the fractions between them (`u32::MAX` where the source
+/// is within a pixel of the edge or off the image, or where the distortion polynomial
+/// has folded over).
 fn right_maps(
     c: &CameraModel,
     rotation: &Matrix3<f64>,
@@ -336,15 +337,16 @@ fn right_maps(
                         return (u32::MAX, [0.0; 2]);
                     }
                     let p = c.normalised_to_pixel(x, y);
+                    // Bicubic resampling reads a 4 x 4 neighbourhood: the source keeps one
+                    // pixel from the edge, and the last inner column / row samples with
+                    // fraction 1 from its left / upper neighbour.
                     let inside =
-                        p.x >= 0.0 && p.y >= 0.0 && p.x <= (w - 1) as f64 && p.y <= (h - 1) as f64;
+                        p.x >= 1.0 && p.y >= 1.0 && p.x <= (w - 2) as f64 && p.y <= (h - 2) as f64;
                     if !inside {
                         return (u32::MAX, [0.0; 2]);
                     }
-                    // The last column / row samples with fraction 1 from its left / upper
-                    // neighbour, so that all four neighbours exist.
-                    let bx = (p.x.floor() as usize).min(w - 2);
-                    let by = (p.y.floor() as usize).min(h - 2);
+                    let bx = (p.x.floor() as usize).min(w - 3);
+                    let by = (p.y.floor() as usize).min(h - 3);
                     let frac = [(p.x - bx as f64) as f32, (p.y - by as f64) as f32];
                     ((by * w + bx) as u32, frac)
                 })

@@ -76,7 +76,7 @@ fn check_plane(head: &StereoHead, tolerance_m: f64) {
     let (ru, rb) = maps(&head.right, 0.4);
     let out = rec.reconstruct(&lu, &lb, &ru, &rb).unwrap();
     let (w, h) = lu.size();
-    let (mut worst, mut worst_depth, mut valid) = (0.0f64, 0.0f64, 0);
+    let (mut worst, mut worst_depth, mut valid, mut sum2) = (0.0f64, 0.0f64, 0, 0.0);
     for y in 0..h {
         for x in 0..w {
             let p = out.pixels.get(y * w + x);
@@ -87,6 +87,7 @@ fn check_plane(head: &StereoHead, tolerance_m: f64) {
             let truth = on_plane(&head.left, x, y).unwrap();
             let got = Point3::new(p.point_m[0], p.point_m[1], p.point_m[2]).cast::<f64>();
             worst = worst.max((got - truth).norm());
+            sum2 += (got - truth).norm_squared();
             let depth = head.left.pose.apply(&truth).z;
             worst_depth = worst_depth.max((f64::from(p.depth_m) - depth).abs());
             assert!(p.sigma_m > 0.0 && p.sigma_m < 1e-3, "sigma {}", p.sigma_m);
@@ -94,7 +95,9 @@ fn check_plane(head: &StereoHead, tolerance_m: f64) {
         }
     }
     println!(
-        "{w}x{h}: {valid} valid, worst point error {:.3} um, worst depth error {:.3} um",
+        "{w}x{h}: {valid} valid, point error {:.3} um RMS, {:.3} um worst; worst depth \
+         error {:.3} um",
+        (sum2 / valid as f64).sqrt() * 1e6,
         worst * 1e6,
         worst_depth * 1e6
     );

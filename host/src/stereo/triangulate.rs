@@ -8,9 +8,10 @@
 //! `sigma_d = noise sqrt(1 / B_L^2 + 1 / B_R^2) / |g|`, and `dZ / dd = -Z / d` to depth,
 //! along the left ray.
 //!
-//! The prediction counts one right pixel's noise at the match; the bilinear resampling
-//! averages neighbouring right pixels, so the measured noise lies between this and
-//! `noise sqrt(1 / B_L^2 + 1 / (16 B_R^2)) / |g|` (16 pixels at most enter a match).
+//! The prediction counts one right pixel's noise at the match; the interpolations
+//! (bicubic resampling, then cubic along the row and across rows) average neighbouring
+//! right pixels, so the measured noise lies below it, down to about `sqrt(1 / 2)` of it
+//! where both cameras are equally noisy (the twin's spheres: 0.81 to 0.85).
 
 use nalgebra::{Matrix3, Point3, Vector3};
 
