@@ -121,6 +121,41 @@ fn imported_opencv_file_reconstructs_the_same_points_as_the_rig_file() {
         imported.heads[0].camera.distortion,
         ours.heads[0].camera.distortion
     );
+    // The same through XML (the format named by a flag, not the extension), in metres.
+    ok(&slscan(&[
+        "calibration",
+        "export",
+        "--rig",
+        &d("rig.json"),
+        "--out",
+        &d("cal.txt"),
+        "--format",
+        "xml",
+        "--unit",
+        "m",
+    ]));
+    assert!(std::fs::read_to_string(dir.join("cal.txt"))
+        .unwrap()
+        .contains("<opencv_storage>"));
+    ok(&slscan(&[
+        "calibration",
+        "import",
+        "--opencv",
+        &d("cal.txt"),
+        "--out",
+        &d("from_xml.json"),
+        "--unit",
+        "m",
+    ]));
+    let from_xml = read_rig(&dir.join("from_xml.json")).unwrap();
+    for rig in [&from_xml, &imported] {
+        let (a, b) = (&rig.heads[0], &ours.heads[0]);
+        assert_eq!(a.camera.distortion, b.camera.distortion);
+        assert_eq!(a.projector.intrinsics, b.projector.intrinsics);
+        let (pa, pb) = (&a.projector.pose, &b.projector.pose);
+        assert!((pa.rotation - pb.rotation).amax() < 1e-12);
+        assert!((pa.translation_m - pb.translation_m).amax() < 1e-12);
+    }
 
     reconstruct(&images, &dir.join("rig.json"), &dir.join("ours.ply"));
     reconstruct(
@@ -209,7 +244,7 @@ fn bad_opencv_files_are_refused_before_any_output() {
             "--out",
             &d("x.txt"),
         ]),
-        ".yml, .yaml or .xml",
+        ".yml, .yaml or .xml, or give --format",
     );
     assert!(!dir.join("x.txt").exists());
     std::fs::remove_dir_all(&dir).unwrap();

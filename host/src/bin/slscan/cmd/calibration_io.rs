@@ -4,14 +4,14 @@
 //! (projector-camera `M1 D1 M4 D4 Rlp Tlp`, stereo `M1 D1 M2 D2 R T` or
 //! `R1 R2 P1 P2 Q`), checks its conventions (`slscan::calibration::opencv::import`)
 //! and writes our rig file; `export --rig rig.json --out FILE.yml|.yaml|.xml` writes one
-//! head of a rig as an OpenCV file. Both check every option and input before writing,
+//! head of a rig as an OpenCV file (`--format yaml|xml` overrides the extension). Both check every option and input before writing,
 //! and write atomically: a failure leaves no output, old or new, half-written.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 use slscan::calibration::opencv::{
-    read_opencv, storage, write_opencv, ImportOptions, Imported, LengthUnit, SecondDevice,
+    read_opencv, storage, write_opencv, Format, ImportOptions, Imported, LengthUnit, SecondDevice,
 };
 use slscan::calibration::{read_rig, write_rig};
 
@@ -72,6 +72,9 @@ struct ExportArgs {
     /// The OpenCV file to write: `.yml` / `.yaml` (YAML) or `.xml` (XML).
     #[arg(long, short, value_name = "FILE")]
     out: PathBuf,
+    /// yaml or xml, whatever the extension of --out says.
+    #[arg(long, value_name = "yaml|xml", value_parser = parse_format)]
+    format: Option<Format>,
     /// Length unit of the written translations: mm or m.
     #[arg(long, default_value = "mm", value_name = "mm|m")]
     unit: LengthUnit,
@@ -134,16 +137,24 @@ fn print_baseline(what: &str, second: &slscan::calibration::PinholeModel) {
     );
 }
 
+fn parse_format(s: &str) -> Result<Format, String> {
+    match s {
+        "yaml" | "yml" => Ok(Format::Yaml),
+        "xml" => Ok(Format::Xml),
+        _ => Err(format!("format {s:?}: expected yaml or xml")),
+    }
+}
+
 fn export(a: ExportArgs) -> anyhow::Result<()> {
-    if storage::format_of(&a.out).is_none() {
+    if a.format.is_none() && storage::format_of(&a.out).is_none() {
         anyhow::bail!(
-            "--out {}: name it .yml, .yaml or .xml (the format follows the extension)",
+            "--out {}: name it .yml, .yaml or .xml, or give --format yaml|xml",
             a.out.display()
         );
     }
     slscan::io::check_replaceable(&a.out).with_context(|| format!("--out {}", a.out.display()))?;
     let rig = read_rig(&a.rig).with_context(|| format!("reading {}", a.rig.display()))?;
-    write_opencv(&a.out, &rig, a.head.as_deref(), a.unit, None)
+    write_opencv(&a.out, &rig, a.head.as_deref(), a.unit, a.format)
         .with_context(|| format!("writing {}", a.out.display()))?;
     say!("wrote {}", a.out.display());
     Ok(())
