@@ -201,7 +201,10 @@ fn yaml_slmaster_file_reads_as_opencv_wrote_it() {
     assert_eq!(head.camera.pose, Pose::identity());
     assert_eq!(head.camera.intrinsics.fx, 2.4001234567890123e+03);
     assert_eq!(head.camera.distortion.k1, exact("-8.1234567890123456e-02"));
-    assert_eq!(head.projector.distortion.k1, exact("2.9999999999999999e-02"));
+    assert_eq!(
+        head.projector.distortion.k1,
+        exact("2.9999999999999999e-02")
+    );
     assert_eq!(
         (head.projector.width_px, head.projector.height_px),
         (912, 1140)
