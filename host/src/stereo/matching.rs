@@ -24,6 +24,9 @@ use super::rectify::Rectification;
 use super::StereoConfig;
 use crate::raster::Raster;
 
+/// Steps walked from a hint before a binary search takes over.
+const HINT_STEPS: usize = 4;
+
 /// A maximal monotonic stretch of a rectified row: samples `start..=end`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) struct Run {
@@ -93,10 +96,16 @@ impl RectifiedRight {
         }
     }
 
+    /// Hints for [`RectifiedRight::find`]: one position per rectified row, any value.
+    pub fn hints(&self) -> Vec<usize> {
+        vec![0; self.height]
+    }
+
     /// The match of coordinate `v` for a left pixel at rectified grid `(x, y)`, with
     /// disparities in `d_min..=d_max` (grid pixels): matched on the four rows around
     /// `y`, cubic in `y`. `None` where a row has no match, or more than one, or
-    /// neighbouring rows disagree by more than `max_row_shift_px`.
+    /// neighbouring rows disagree by more than `max_row_shift_px`. `hint` (from
+    /// [`RectifiedRight::hints`]) holds each row's last match, where the search starts.
     pub fn find(
         &self,
         x: f32,
@@ -105,6 +114,7 @@ impl RectifiedRight {
         d_min: f32,
         d_max: f32,
         max_row_shift_px: f32,
+        hint: &mut [usize],
     ) -> Option<Match> {
         if !(x.is_finite() && y.is_finite() && y >= 0.0) {
             return None;
@@ -117,7 +127,7 @@ impl RectifiedRight {
         let (lo, hi) = (x - d_max, x - d_min);
         let mut m = [None; 4];
         for (k, slot) in m.iter_mut().enumerate() {
-            *slot = Some(self.find_in_row(j + k - 1, v, lo, hi)?);
+            *slot = Some(self.find_in_row(j + k - 1, v, lo, hi, hint)?);
         }
         let m = m.map(|m| m.expect("all four rows matched"));
         if m.windows(2)
@@ -135,7 +145,7 @@ impl RectifiedRight {
     }
 
     /// The single bracketing pair of `v` in row `j` between grid x `lo` and `hi`.
-    fn find_in_row(&self, j: usize, v: f32, lo: f32, hi: f32) -> Option<Match> {
+    fn find_in_row(&self, j: usize, v: f32, lo: f32, hi: f32, hint: &mut [usize]) -> Option<Match> {
         let row = &self.u[j * self.width..(j + 1) * self.width];
         let b_row = &self.modulation[j * self.width..(j + 1) * self.width];
         let (first, last) = (lo.floor().max(0.0), hi.ceil().min((self.width - 1) as f32));
@@ -155,16 +165,36 @@ impl RectifiedRight {
             if !(va <= target && target <= vb) {
                 continue;
             }
-            // Largest k in a..b with row[k] <= v (so row[k + 1] >= v).
-            let (mut l, mut r) = (a as usize, b as usize - 1);
-            while l < r {
-                let m = (l + r).div_ceil(2);
-                if sign * row[m] <= target {
-                    l = m;
+            // Largest l in a..b with row[l] <= v (so row[l + 1] >= v): a few steps from
+            // the hint (the neighbouring left pixel's match on this row), else a binary
+            // search.
+            let (a, b) = (a as usize, b as usize);
+            let is_bracket =
+                |l: usize| sign * row[l] <= target && (l + 1 >= b || sign * row[l + 1] > target);
+            let mut l = hint[j].clamp(a, b - 1);
+            for _ in 0..HINT_STEPS {
+                if is_bracket(l) {
+                    break;
+                }
+                if sign * row[l] > target {
+                    l = l.saturating_sub(1).max(a);
                 } else {
-                    r = m - 1;
+                    l = (l + 1).min(b - 1);
                 }
             }
+            if !is_bracket(l) {
+                let (mut lo, mut hi) = (a, b - 1);
+                while lo < hi {
+                    let m = (lo + hi).div_ceil(2);
+                    if sign * row[m] <= target {
+                        lo = m;
+                    } else {
+                        hi = m - 1;
+                    }
+                }
+                l = lo;
+            }
+            hint[j] = l;
             let (u0, u1) = (row[l], row[l + 1]);
             // Cubic through the pair and its outer neighbours, which must be in the run:
             // a few Newton steps from the linear root (the cubic is monotonic here).
@@ -176,7 +206,7 @@ impl RectifiedRight {
             let target = v - u0;
             let mut t = target / (u1 - u0);
             let mut slope = u1 - u0;
-            for _ in 0..3 {
+            for _ in 0..2 {
                 let (w, dw) = (catmull_rom(t), catmull_rom_slope(t));
                 let p: f32 = (0..4).map(|k| w[k] * q[k]).sum();
                 slope = (0..4).map(|k| dw[k] * q[k]).sum();
@@ -348,13 +378,21 @@ mod tests {
     fn a_value_is_found_between_its_bracketing_pair_and_rows_are_interpolated() {
         let right = right_of(&ramp(8, -0.5));
         // Row 1: 12.25 at x = 2.75; row 2: at x = 3.25; a quarter of the way down: 2.875.
-        let m = right.find(6.0, 1.25, 12.25, 0.0, 10.0, 2.0).unwrap();
+        let m = right
+            .find(6.0, 1.25, 12.25, 0.0, 10.0, 2.0, &mut [0; 4])
+            .unwrap();
         assert!((m.x - 2.875).abs() < 1e-5, "{m:?}");
         assert!((m.slope - 1.0).abs() < 1e-5);
         // Outside the disparity window, or without a row above and two below: nothing.
-        assert!(right.find(6.0, 1.25, 12.25, 4.0, 10.0, 2.0).is_none());
-        assert!(right.find(6.0, 0.5, 12.25, 0.0, 10.0, 2.0).is_none());
-        assert!(right.find(6.0, 2.0, 12.25, 0.0, 10.0, 2.0).is_none());
+        assert!(right
+            .find(6.0, 1.25, 12.25, 4.0, 10.0, 2.0, &mut [0; 4])
+            .is_none());
+        assert!(right
+            .find(6.0, 0.5, 12.25, 0.0, 10.0, 2.0, &mut [0; 4])
+            .is_none());
+        assert!(right
+            .find(6.0, 2.0, 12.25, 0.0, 10.0, 2.0, &mut [0; 4])
+            .is_none());
     }
 
     #[test]
@@ -364,7 +402,9 @@ mod tests {
             .map(|x| 10.0 + x as f32 + 0.05 * (x * x) as f32)
             .collect();
         let right = right_of(&vec![row; 4]);
-        let m = right.find(7.0, 1.5, 13.0, 0.0, 10.0, 2.0).unwrap();
+        let m = right
+            .find(7.0, 1.5, 13.0, 0.0, 10.0, 2.0, &mut [0; 4])
+            .unwrap();
         let want = (-1.0 + 1.6f32.sqrt()) / 0.1;
         assert!((m.x - want).abs() < 1e-4, "{} vs {want}", m.x);
         assert!((m.slope - (1.0 + 0.1 * want)).abs() < 1e-4);
@@ -380,12 +420,17 @@ mod tests {
         let short = vec![nan, 11.0, 12.0, 13.0, nan, nan];
         for (row, v) in [(edge, 20.0), (hole, 12.0), (twice, 11.5), (short, 11.5)] {
             let right = right_of(&vec![row.clone(); 4]);
-            assert!(right.find(5.0, 1.0, v, 0.0, 10.0, 2.0).is_none(), "{row:?}");
+            assert!(
+                right
+                    .find(5.0, 1.0, v, 0.0, 10.0, 2.0, &mut [0; 4])
+                    .is_none(),
+                "{row:?}"
+            );
         }
         // A decreasing row matches too.
         let down: Vec<f32> = (0..6).map(|x| 15.0 - x as f32).collect();
         let m = right_of(&vec![down; 4])
-            .find(5.0, 1.0, 12.5, 0.0, 10.0, 2.0)
+            .find(5.0, 1.0, 12.5, 0.0, 10.0, 2.0, &mut [0; 4])
             .unwrap();
         assert!(
             (m.x - 2.5).abs() < 1e-5 && (m.slope + 1.0).abs() < 1e-5,
@@ -393,6 +438,8 @@ mod tests {
         );
         // Rows that disagree by more than the allowed shift are an edge between them.
         let right = right_of(&ramp(8, -3.0));
-        assert!(right.find(7.0, 1.5, 12.0, 0.0, 10.0, 2.0).is_none());
+        assert!(right
+            .find(7.0, 1.5, 12.0, 0.0, 10.0, 2.0, &mut [0; 4])
+            .is_none());
     }
 }

@@ -282,11 +282,10 @@ impl StereoReconstructor {
         let (width, height) = r.left_size();
         let mut pixels = PixelMaps::default();
         pixels.resize(width, height);
-        pixels
-            .rows_mut()
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(y, row)| self.left_row(y, left_u, left_modulation, &right, row));
+        pixels.rows_mut().into_par_iter().enumerate().for_each_init(
+            || right.hints(),
+            |hints, (y, row)| self.left_row(y, left_u, left_modulation, &right, hints, row),
+        );
         let centre = self.triangulator.left_centre_m();
         let view = [centre.x as f32, centre.y as f32, centre.z as f32];
         Ok(Reconstruction::from_pixel_maps(
@@ -301,6 +300,7 @@ impl StereoReconstructor {
         left_u: &Raster<f32>,
         left_modulation: &Raster<f32>,
         right: &RectifiedRight,
+        hints: &mut [usize],
         out: RowMut<'_>,
     ) {
         let c = &self.config;
@@ -318,7 +318,8 @@ impl StereoReconstructor {
             out.background[x] = b;
             let ok_left = u.is_finite() && b >= c.min_modulation && b.is_finite();
             let found = if ok_left {
-                right.find(xr_row[x], yr_row[x], u, d_min, d_max, c.max_row_shift_px)
+                let (xr, yr) = (xr_row[x], yr_row[x]);
+                right.find(xr, yr, u, d_min, d_max, c.max_row_shift_px, hints)
             } else {
                 None
             };
