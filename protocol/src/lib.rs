@@ -37,7 +37,9 @@ pub mod state;
 
 pub use error::{FrameError, HardwareFault, WireError};
 pub use framing::{decode_payload, encode_frame, FrameAccumulator};
-pub use limits::{BoardLimits, CameraModel, ProjectorModel};
+pub use limits::{
+    BoardLimits, CameraModel, ControllerLimitError, ControllerLimits, ProjectorModel,
+};
 pub use messages::{
     BoardFrame, BoardStatus, DeviceInfo, Event, FirmwareVersion, HostFrame, Level, PlanSummary,
     Request, RequestId, ResetCause, Response, ScanReport, ScanState, PROTOCOL_VERSION,

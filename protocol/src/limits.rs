@@ -171,6 +171,174 @@ impl CameraModel {
     }
 }
 
+/// What a DMD controller holds and refuses, checked by the host before it
+/// uploads anything (`slscan::rig::dlpc`) and enforced by hil-sim's
+/// byte-level controller. Figures from TI's programmer's guides where they
+/// state one (DLPC350: DLPU010, DLPC900: DLPU018), assumed otherwise; each
+/// field of [`ProjectorModel::controller`] says which.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ControllerLimits {
+    /// DMD size in mirrors (width, height).
+    pub dmd_px: (u16, u16),
+    /// Shortest pattern exposure per bit depth, in microseconds: index 0 is
+    /// 1-bit, index 7 is 8-bit.
+    pub min_exposure_us: [u32; 8],
+    /// Entries of the pattern LUT (one per displayed pattern).
+    pub max_lut_entries: u16,
+    /// 24-bit images the controller's image store holds.
+    pub max_images: u16,
+    /// Bytes the image store holds, counted as the controller stores an
+    /// image (DLPC350: packed frames in flash; DLPC900: decoded bit planes).
+    pub image_memory_bytes: u32,
+}
+
+/// Why a pattern set cannot go to a controller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
+pub enum ControllerLimitError {
+    /// Bit depths are 1 to 8.
+    #[error("bit depth {bit_depth} is not 1 to 8")]
+    BitDepth {
+        /// Depth asked for.
+        bit_depth: u8,
+    },
+    /// An exposure shorter than the controller shows at that bit depth.
+    #[error(
+        "exposure {exposure_us} us is under the {min_us} us minimum for {bit_depth}-bit patterns"
+    )]
+    ExposureTooShort {
+        /// Bit depth of the patterns.
+        bit_depth: u8,
+        /// Exposure asked for.
+        exposure_us: u32,
+        /// The controller's minimum at that depth.
+        min_us: u32,
+    },
+    /// More patterns than LUT entries.
+    #[error("{patterns} patterns, the pattern LUT holds {max}")]
+    LutTooLong {
+        /// Patterns asked for.
+        patterns: u32,
+        /// LUT entries.
+        max: u16,
+    },
+    /// More images than the image store holds, by count or by bytes.
+    #[error("{images} images of {bytes} bytes, the controller holds {max_images} images / {max_bytes} bytes")]
+    OverMemory {
+        /// 24-bit images the set packs into.
+        images: u32,
+        /// Their bytes as stored.
+        bytes: u64,
+        /// Images the store holds.
+        max_images: u16,
+        /// Bytes the store holds.
+        max_bytes: u32,
+    },
+    /// Patterns of another size than the DMD.
+    #[error("pattern is {got:?}, the DMD is {dmd:?} (width, height)")]
+    DmdSize {
+        /// Pattern size.
+        got: (u32, u32),
+        /// DMD size.
+        dmd: (u16, u16),
+    },
+}
+
+impl ControllerLimits {
+    /// Shortest exposure at `bit_depth` (1..=8), or an error naming the depth.
+    pub fn min_exposure_us(&self, bit_depth: u8) -> Result<u32, ControllerLimitError> {
+        match bit_depth {
+            1..=8 => Ok(self.min_exposure_us[bit_depth as usize - 1]),
+            _ => Err(ControllerLimitError::BitDepth { bit_depth }),
+        }
+    }
+
+    /// Patterns of one bit depth that one 24-bit image carries.
+    pub const fn patterns_per_image(bit_depth: u8) -> u32 {
+        if bit_depth == 0 || bit_depth > 24 {
+            0
+        } else {
+            24 / bit_depth as u32
+        }
+    }
+
+    /// Checks a set of `patterns` patterns of `bit_depth` bits, each shown
+    /// `exposure_us`, whose images take `image_bytes` bytes as stored, before
+    /// anything is sent.
+    pub fn check_set(
+        &self,
+        patterns: u32,
+        bit_depth: u8,
+        exposure_us: u32,
+        image_bytes: u64,
+    ) -> Result<(), ControllerLimitError> {
+        let min_us = self.min_exposure_us(bit_depth)?;
+        if exposure_us < min_us {
+            return Err(ControllerLimitError::ExposureTooShort {
+                bit_depth,
+                exposure_us,
+                min_us,
+            });
+        }
+        if patterns > u32::from(self.max_lut_entries) {
+            return Err(ControllerLimitError::LutTooLong {
+                patterns,
+                max: self.max_lut_entries,
+            });
+        }
+        let images = patterns.div_ceil(Self::patterns_per_image(bit_depth));
+        if images > u32::from(self.max_images) || image_bytes > u64::from(self.image_memory_bytes) {
+            return Err(ControllerLimitError::OverMemory {
+                images,
+                bytes: image_bytes,
+                max_images: self.max_images,
+                max_bytes: self.image_memory_bytes,
+            });
+        }
+        Ok(())
+    }
+}
+
+impl ProjectorModel {
+    /// What this model's DMD controller holds and refuses.
+    pub const fn controller(self) -> ControllerLimits {
+        match self {
+            // DLPC350 + DLP4500 (LightCrafter 4500), DLPU010:
+            // - DMD 912 x 1140 (diamond pixels).
+            // - Minimum exposures per bit depth, the guide's pattern
+            //   exposure table (1-bit 235 us ... 8-bit 8333 us); open
+            //   drivers round them up (250 ... 8500 us).
+            // - Pattern LUT 128 entries, image index LUT 64 entries
+            //   (TI's dlpc350_api.cpp, DLPC350_SetPatternConfig "range 1
+            //   through 64").
+            // - Image store: assumed 32 MiB of the EVM's flash for images,
+            //   counted as uncompressed 24-bit frames (912 * 1140 * 3 bytes
+            //   each: 10 frames).
+            ProjectorModel::Dlpc350 => ControllerLimits {
+                dmd_px: (912, 1140),
+                min_exposure_us: [235, 700, 1570, 1700, 2000, 2500, 4500, 8333],
+                max_lut_entries: 128,
+                max_images: 64,
+                image_memory_bytes: 32 * 1024 * 1024,
+            },
+            // DLPC900 + DLP6500 (LightCrafter 6500), DLPU018:
+            // - DMD 1920 x 1080.
+            // - Minimum exposures per bit depth, the guide's table for
+            //   the DLP6500 (1-bit 105 us ... 8-bit 4046 us).
+            // - Pattern on-the-fly: up to 400 1-bit patterns at 1080p,
+            //   i.e. 400 bit planes of 1920 x 1080 decoded (103,680,000
+            //   bytes); the image index of 0x1A2A is 5 bits, but 400
+            //   planes make 16 whole 24-bit images.
+            ProjectorModel::Dlpc900 => ControllerLimits {
+                dmd_px: (1920, 1080),
+                min_exposure_us: [105, 304, 394, 823, 1215, 1487, 1998, 4046],
+                max_lut_entries: 400,
+                max_images: 16,
+                image_memory_bytes: 400 * 1920 * 1080 / 8,
+            },
+        }
+    }
+}
+
 /// Timer ticks of a `timer_clock_hz` clock closest to `ns` (ties round up).
 /// Monotonic in `ns`, so an ordering of times survives the conversion.
 ///
@@ -208,6 +376,35 @@ mod tests {
         assert_eq!(ns_to_ticks(3, 170_000_000), 1);
         assert_eq!(ns_to_ticks(2, 170_000_000), 0);
         assert_eq!(ticks_to_ns(34_000, 170_000_000), 200_000);
+    }
+
+    #[test]
+    fn controller_limits_refuse_short_exposures_long_luts_and_full_memory() {
+        let c = ProjectorModel::Dlpc350.controller();
+        assert_eq!(c.check_set(12, 8, 10_000, 4 * 3_119_040), Ok(()));
+        assert_eq!(
+            c.check_set(12, 8, 8_000, 0),
+            Err(ControllerLimitError::ExposureTooShort {
+                bit_depth: 8,
+                exposure_us: 8_000,
+                min_us: 8_333
+            })
+        );
+        assert!(matches!(
+            c.check_set(129, 1, 1_000, 0),
+            Err(ControllerLimitError::LutTooLong { max: 128, .. })
+        ));
+        assert!(matches!(
+            c.check_set(33, 8, 10_000, 11 * 3_119_040),
+            Err(ControllerLimitError::OverMemory { images: 11, .. })
+        ));
+        assert!(matches!(
+            c.check_set(3, 9, 10_000, 0),
+            Err(ControllerLimitError::BitDepth { bit_depth: 9 })
+        ));
+        let d = ProjectorModel::Dlpc900.controller();
+        assert_eq!(d.min_exposure_us(1), Ok(105));
+        assert!(d.check_set(51, 8, 5_000, 0).is_err());
     }
 
     #[test]
