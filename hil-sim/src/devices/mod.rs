@@ -6,9 +6,14 @@
 //! output edges in time order and they answer with feedback edges, and keep a
 //! log of what they displayed or exposed so a camera model can integrate
 //! exactly what the DMDs showed during each exposure window.
+//!
+//! [`dlpc`] is the DMD controller behind a projector at the byte level: the
+//! USB HID reports a host driver sends, the images and pattern LUT they
+//! upload, what the DMD then shows.
 
 pub mod camera;
 pub mod delay;
+pub mod dlpc;
 pub mod projector;
 
 pub use camera::{Camera, CameraConfig, Exposure, MissReason};
