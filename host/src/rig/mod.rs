@@ -17,9 +17,11 @@
 //!   ([`folder_camera`], behind the [`camera_source::FrameSource`] trait where
 //!   a GenICam backend slots in later) and DMD pattern sets written as PNG
 //!   files for the DMD vendor's GUI ([`folder_projector`]: PLACEHOLDER, no DMD
-//!   driver uploads them).
+//!   driver uploads them), or DMD controllers driven over USB HID
+//!   ([`dlpc`]: DLPC350, DLPC900).
 
 pub mod camera_source;
+pub mod dlpc;
 pub mod folder_camera;
 pub mod folder_projector;
 pub mod hardware;
@@ -188,6 +190,15 @@ pub enum RigError {
     NoLedControl {
         /// Head index.
         head: usize,
+    },
+    /// A DMD controller refused the pattern set, or its link failed (the
+    /// head then has no set loaded).
+    #[error("head {head}: DMD controller")]
+    Controller {
+        /// Head index.
+        head: usize,
+        /// The driver's error.
+        source: dlpc::DlpcError,
     },
     /// A device back end failed in a way of its own (the simulator's pty or
     /// renderer, a vendor library).

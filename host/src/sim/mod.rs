@@ -10,12 +10,15 @@
 //!                      --truth::ground_truth--> scan::GroundTruth --> scan::measure
 //!                      --truth::twin_calibration / calibration_source--> RigCalibration
 //!                      --calibration::{twin_head, twin_scene}--> rendered board views
+//! rig::dlpc driver --dlpc::SimHidLink (HID reports)--> hil-sim's DLPC350 / DLPC900
+//!                  --what the controller shows--> rig::SimRig's DMDs
 //! ```
 
 pub mod aliased;
 pub mod board;
 pub mod calibration;
 pub mod calibration_source;
+pub mod dlpc;
 pub mod rig;
 pub mod scan;
 pub mod truth;

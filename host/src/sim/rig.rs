@@ -19,8 +19,10 @@ use protocol::ScanPlan;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use super::dlpc::{shown, simulated_head, SimHidLink};
 use crate::board::{ClientConfig, ScanOutcome};
 use crate::raster::Raster;
+use crate::rig::dlpc::{Controller, DlpcHead, DriverConfig};
 use crate::rig::serial_board::SerialBoard;
 use crate::rig::{check_sequence, slots_per_frame, Board, Camera, Led, Projector, RigError, WHITE};
 
@@ -51,6 +53,10 @@ pub struct SimRig {
     rng: ChaCha8Rng,
     /// Per head, per camera trigger of the last plan: patterns its exposure holds.
     slots_per_frame: Vec<Vec<usize>>,
+    /// Per projector, the DLPC driver and simulated controller its patterns
+    /// go through ([`SimRig::drive_projectors_through`]); empty: patterns
+    /// go straight to the DMD.
+    drivers: Vec<DlpcHead<SimHidLink>>,
 }
 
 impl SimRig {
@@ -73,7 +79,37 @@ impl SimRig {
             sensor: config.sensor,
             rng: ChaCha8Rng::seed_from_u64(config.noise_seed),
             slots_per_frame: vec![Vec::new(); heads],
+            drivers: Vec::new(),
         })
+    }
+
+    /// From now on every projector's patterns go through the real
+    /// `controller` driver (`crate::rig::dlpc`) as USB HID reports to
+    /// hil-sim's byte-level controller, and the DMD shows what that
+    /// controller holds (8-bit grey or 1-bit planes, LEDs on or off).
+    /// The simulated controller's DMD has the twin projector's size; its
+    /// other limits are the real controller's. `exposure_us` is the LUT's
+    /// exposure (the board's plan still times each pattern).
+    pub fn drive_projectors_through(&mut self, controller: Controller, exposure_us: u32) {
+        self.drivers = self
+            .twin
+            .rig()
+            .projectors
+            .iter()
+            .map(|p| {
+                let k = &p.model.intrinsics;
+                simulated_head(
+                    controller,
+                    (k.width, k.height),
+                    DriverConfig::new(exposure_us),
+                )
+            })
+            .collect();
+    }
+
+    /// The drivers of [`SimRig::drive_projectors_through`], one per projector.
+    pub fn drivers(&self) -> &[DlpcHead<SimHidLink>] {
+        &self.drivers
     }
 
     /// The twin the cameras render.
@@ -184,6 +220,28 @@ impl Projector for SimRig {
     ) -> Result<(), RigError> {
         let expected = self.dmd_size_px(head)?;
         check_sequence(head, expected, patterns, leds)?;
+        if let Some(driver) = self.drivers.get_mut(head) {
+            self.sequences[head] = Vec::new();
+            driver
+                .load(patterns, leds)
+                .map_err(|source| RigError::Controller { head, source })?;
+            let on_dmd = shown(driver);
+            self.leds[head] = on_dmd
+                .iter()
+                .map(|p| p.led.map(|on| if on { 1.0 } else { 0.0 }))
+                .collect();
+            self.sequences[head] = on_dmd
+                .into_iter()
+                .map(|p| {
+                    Arc::new(Pattern {
+                        width: expected.0,
+                        height: expected.1,
+                        values: p.values,
+                    })
+                })
+                .collect();
+            return Ok(());
+        }
         let mut seq = Vec::with_capacity(patterns.len());
         for p in patterns {
             seq.push(Arc::new(Pattern {

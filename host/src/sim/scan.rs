@@ -13,6 +13,7 @@ use super::calibration_source::{self, CalibrationSource};
 use super::rig::{SimRig, SimRigConfig};
 use super::truth::ground_truth;
 use crate::io::report::ScanReport;
+use crate::rig::dlpc::Controller;
 use crate::rig::RigError;
 use crate::scan::calibration_file::CalibrationFileError;
 use crate::scan::{output, plan, run_on_rig, Clock, Progress, ScanConfig, ScanError, ScanResult};
@@ -32,6 +33,10 @@ pub struct SimScanConfig {
     pub sim_projector_gamma: f64,
     /// The calibration the scan reconstructs with (default: the twin's truth).
     pub calibration: CalibrationSource,
+    /// Drive the projectors through this DMD controller's driver and
+    /// hil-sim's byte-level controller (default: patterns straight to the
+    /// simulated DMDs).
+    pub projector_driver: Option<Controller>,
 }
 
 impl SimScanConfig {
@@ -48,6 +53,7 @@ impl SimScanConfig {
             board: SimBoardConfig::default(),
             sim_projector_gamma: 1.0,
             calibration: CalibrationSource::TwinTruth,
+            projector_driver: None,
         }
     }
 }
@@ -172,6 +178,9 @@ pub fn run_sim(
             noise_seed: config.seed,
         },
     )?;
+    if let Some(controller) = config.projector_driver {
+        sim.drive_projectors_through(controller, (plan::display_s() * 1e6).round() as u32);
+    }
     clock.lap("setup");
     let mut result = run_on_rig(
         &mut sim,

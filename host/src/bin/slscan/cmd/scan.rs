@@ -103,6 +103,11 @@ pub struct Args {
     /// (1 = DMD pattern mode; about 2.2 through a video input).
     #[arg(long, default_value_t = 1.0)]
     sim_projector_gamma: f64,
+    /// Drive the simulated projectors through this DMD controller's USB HID
+    /// driver and hil-sim's byte-level controller (--sim; default: patterns
+    /// go straight to the simulated DMDs).
+    #[arg(long, value_enum, requires = "sim")]
+    projector_driver: Option<ProjectorDriverArg>,
     /// Pre-compensate the patterns for a projector response of this gamma
     /// (send grey^(1/gamma)).
     #[arg(long)]
@@ -219,6 +224,24 @@ which pixels both projectors light from three flat-field exposures it adds after
 A alone full on, B alone full on), then separates the two fringes there (--dealias analytic,
 four periods by default) or masks them (--dealias mask).";
 
+/// `--projector-driver` values.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum ProjectorDriverArg {
+    /// TI DLPC350 (LightCrafter 4500).
+    Dlpc350,
+    /// TI DLPC900 (LightCrafter 6500 / 9000).
+    Dlpc900,
+}
+
+impl From<ProjectorDriverArg> for slscan::rig::dlpc::Controller {
+    fn from(a: ProjectorDriverArg) -> Self {
+        match a {
+            ProjectorDriverArg::Dlpc350 => Self::Dlpc350,
+            ProjectorDriverArg::Dlpc900 => Self::Dlpc900,
+        }
+    }
+}
+
 /// `--mode` values.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 enum ModeArg {
@@ -287,6 +310,7 @@ fn scan_sim(
     }
     config.seed = args.seed;
     config.sim_projector_gamma = args.sim_projector_gamma;
+    config.projector_driver = args.projector_driver.map(Into::into);
     let scan = &mut config.scan;
     scan.mode = mode;
     scan.camera_px = (args.width, args.height);
