@@ -279,15 +279,7 @@ fn every_family_decodes_on_the_twin_and_the_wrong_origin_is_refused() {
     assert!(worst < 2e-6, "{worst}");
 
     // The SLMaster capture described with our phase origin: refused, cause named.
-    let comple = Preset::SinusCompleGray
-        .spec(
-            &PresetOptions {
-                periods_px: Some(vec![32.0]),
-                ..Default::default()
-            },
-            PROJECTOR,
-        )
-        .unwrap();
+    let comple = comple_gray_32();
     let frames = render(&t, &comple, 20);
     let mut ours = comple.clone();
     for e in &mut ours.sequence {
@@ -304,6 +296,19 @@ fn every_family_decodes_on_the_twin_and_the_wrong_origin_is_refused() {
         err.contains("half a period") && err.contains("phase origin"),
         "{err}"
     );
+}
+
+/// The SinusCompleGrayCode preset with a 32 px period on this projector.
+fn comple_gray_32() -> CaptureSpec {
+    Preset::SinusCompleGray
+        .spec(
+            &PresetOptions {
+                periods_px: Some(vec![32.0]),
+                ..Default::default()
+            },
+            PROJECTOR,
+        )
+        .unwrap()
 }
 
 fn tmp(name: &str) -> PathBuf {
@@ -348,15 +353,7 @@ fn reconstruct_reads_a_manifest_or_a_preset_and_refuses_bad_descriptions() {
         &RigCalibration::single(t.head.clone()),
     )
     .unwrap();
-    let spec = Preset::SinusCompleGray
-        .spec(
-            &PresetOptions {
-                periods_px: Some(vec![32.0]),
-                ..Default::default()
-            },
-            PROJECTOR,
-        )
-        .unwrap();
+    let spec = comple_gray_32();
     let frames = render(&t, &spec, 30);
 
     // The preset by flag, then the same description as capture.json beside the frames.
@@ -466,15 +463,7 @@ fn reconstruct_stereo_decodes_both_cameras_of_a_stereo_head() {
         .map(|c| Renderer::new(&scene, &rig, c, 0.0).unwrap())
         .collect();
     let head = stereo_head_from_twin(&rig, 0, 1, "S").unwrap();
-    let spec = Preset::SinusCompleGray
-        .spec(
-            &PresetOptions {
-                periods_px: Some(vec![32.0]),
-                ..Default::default()
-            },
-            PROJECTOR,
-        )
-        .unwrap();
+    let spec = comple_gray_32();
     let dir = tmp("stereo");
     let stereo_rig = RigCalibration {
         heads: vec![],
