@@ -111,8 +111,7 @@ impl RectifiedRight {
         x: f32,
         y: f32,
         v: f32,
-        d_min: f32,
-        d_max: f32,
+        (d_min, d_max): (f32, f32),
         max_row_shift_px: f32,
         hint: &mut [usize],
     ) -> Option<Match> {
@@ -149,7 +148,7 @@ impl RectifiedRight {
         let row = &self.u[j * self.width..(j + 1) * self.width];
         let b_row = &self.modulation[j * self.width..(j + 1) * self.width];
         let (first, last) = (lo.floor().max(0.0), hi.ceil().min((self.width - 1) as f32));
-        if !(first < last) {
+        if first >= last {
             return None;
         }
         let (first, last) = (first as u32, last as u32);
@@ -257,12 +256,9 @@ fn resample_row(
         if !all {
             continue;
         }
-        let lerp = |v: [f32; 4]| {
-            let top = v[0] + fx * (v[1] - v[0]);
-            let bottom = v[2] + fx * (v[3] - v[2]);
-            top + fy * (bottom - top)
-        };
-        b_out[i] = lerp([k, k + 1, k + w, k + w + 1].map(|k| right_b.data[k]));
+        let b = [k, k + 1, k + w, k + w + 1].map(|k| right_b.data[k]);
+        let (top, bottom) = (b[0] + fx * (b[1] - b[0]), b[2] + fx * (b[3] - b[2]));
+        b_out[i] = top + fy * (bottom - top);
         let (wx, wy) = (catmull_rom(fx), catmull_rom(fy));
         // About the nearest sample: f32 sums of small differences keep their digits.
         let origin = right_u.data[k];
@@ -379,19 +375,19 @@ mod tests {
         let right = right_of(&ramp(8, -0.5));
         // Row 1: 12.25 at x = 2.75; row 2: at x = 3.25; a quarter of the way down: 2.875.
         let m = right
-            .find(6.0, 1.25, 12.25, 0.0, 10.0, 2.0, &mut [0; 4])
+            .find(6.0, 1.25, 12.25, (0.0, 10.0), 2.0, &mut [0; 4])
             .unwrap();
         assert!((m.x - 2.875).abs() < 1e-5, "{m:?}");
         assert!((m.slope - 1.0).abs() < 1e-5);
         // Outside the disparity window, or without a row above and two below: nothing.
         assert!(right
-            .find(6.0, 1.25, 12.25, 4.0, 10.0, 2.0, &mut [0; 4])
+            .find(6.0, 1.25, 12.25, (4.0, 10.0), 2.0, &mut [0; 4])
             .is_none());
         assert!(right
-            .find(6.0, 0.5, 12.25, 0.0, 10.0, 2.0, &mut [0; 4])
+            .find(6.0, 0.5, 12.25, (0.0, 10.0), 2.0, &mut [0; 4])
             .is_none());
         assert!(right
-            .find(6.0, 2.0, 12.25, 0.0, 10.0, 2.0, &mut [0; 4])
+            .find(6.0, 2.0, 12.25, (0.0, 10.0), 2.0, &mut [0; 4])
             .is_none());
     }
 
@@ -403,7 +399,7 @@ mod tests {
             .collect();
         let right = right_of(&vec![row; 4]);
         let m = right
-            .find(7.0, 1.5, 13.0, 0.0, 10.0, 2.0, &mut [0; 4])
+            .find(7.0, 1.5, 13.0, (0.0, 10.0), 2.0, &mut [0; 4])
             .unwrap();
         let want = (-1.0 + 1.6f32.sqrt()) / 0.1;
         assert!((m.x - want).abs() < 1e-4, "{} vs {want}", m.x);
@@ -422,7 +418,7 @@ mod tests {
             let right = right_of(&vec![row.clone(); 4]);
             assert!(
                 right
-                    .find(5.0, 1.0, v, 0.0, 10.0, 2.0, &mut [0; 4])
+                    .find(5.0, 1.0, v, (0.0, 10.0), 2.0, &mut [0; 4])
                     .is_none(),
                 "{row:?}"
             );
@@ -430,7 +426,7 @@ mod tests {
         // A decreasing row matches too.
         let down: Vec<f32> = (0..6).map(|x| 15.0 - x as f32).collect();
         let m = right_of(&vec![down; 4])
-            .find(5.0, 1.0, 12.5, 0.0, 10.0, 2.0, &mut [0; 4])
+            .find(5.0, 1.0, 12.5, (0.0, 10.0), 2.0, &mut [0; 4])
             .unwrap();
         assert!(
             (m.x - 2.5).abs() < 1e-5 && (m.slope + 1.0).abs() < 1e-5,
@@ -439,7 +435,7 @@ mod tests {
         // Rows that disagree by more than the allowed shift are an edge between them.
         let right = right_of(&ramp(8, -3.0));
         assert!(right
-            .find(7.0, 1.5, 12.0, 0.0, 10.0, 2.0, &mut [0; 4])
+            .find(7.0, 1.5, 12.0, (0.0, 10.0), 2.0, &mut [0; 4])
             .is_none());
     }
 }

@@ -311,7 +311,7 @@ impl StereoReconstructor {
         );
         let (xr_row, yr_row) = self.rectification.left_row(y);
         let phase_per_px = (std::f64::consts::TAU / c.period_px) as f32;
-        let (d_min, d_max) = self.triangulator.disparity_window_px(c.depth_range_m);
+        let window = self.triangulator.disparity_window_px(c.depth_range_m);
         for x in 0..w {
             let (u, b) = (u_row[x], b_row[x]);
             out.modulation[x] = b;
@@ -319,7 +319,7 @@ impl StereoReconstructor {
             let ok_left = u.is_finite() && b >= c.min_modulation && b.is_finite();
             let found = if ok_left {
                 let (xr, yr) = (xr_row[x], yr_row[x]);
-                right.find(xr, yr, u, d_min, d_max, c.max_row_shift_px, hints)
+                right.find(xr, yr, u, window, c.max_row_shift_px, hints)
             } else {
                 None
             };

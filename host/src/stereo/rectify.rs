@@ -236,7 +236,7 @@ fn check_camera(c: &CameraModel, camera: Side) -> Result<(), StereoError> {
         });
     }
     let defect = c.pose.rotation_defect();
-    if !(defect < 1e-6) {
+    if defect.is_nan() || defect >= 1e-6 {
         return Err(StereoError::NotARotation { camera, defect });
     }
     Ok(())

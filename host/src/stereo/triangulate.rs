@@ -83,7 +83,7 @@ impl Triangulator {
         noise_px: f64,
     ) -> Option<StereoPoint> {
         let d = f64::from(x) - f64::from(m.x);
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let f = self.focal_px;
