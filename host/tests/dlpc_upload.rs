@@ -144,11 +144,11 @@ fn unplugged_mid_upload_is_a_link_error_and_nothing_is_loaded() {
         let size = (128, 64);
         let mut head = simulated_head(c, size, DriverConfig::new(10_000));
         let set = fringes_8bit(size);
-        head.load(&set, &vec![WHITE; 12]).unwrap();
+        head.load(&set, &[WHITE; 12]).unwrap();
         let before = head.link().device().reports_in();
         // A second upload: the cable goes 40 reports in, inside the images.
         head.link_mut().device_mut().unplug_after(before + 40);
-        let err = head.load(&set, &vec![WHITE; 12]).unwrap_err();
+        let err = head.load(&set, &[WHITE; 12]).unwrap_err();
         println!("{}: unplugged: {err}", c.name());
         assert!(
             matches!(

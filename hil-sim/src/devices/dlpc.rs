@@ -396,7 +396,7 @@ impl DlpcSim {
         let fits_memory =
             (slot as u64 + 1) * (3 * w * h) as u64 <= u64::from(self.limits.image_memory_bytes);
         if size != 3 * w * h
-            || self.flash_addr % DLPC350_SLOT_BYTES != 0
+            || !self.flash_addr.is_multiple_of(DLPC350_SLOT_BYTES)
             || slot >= self.images.len()
             || !fits_memory
         {
@@ -424,7 +424,7 @@ impl DlpcSim {
                 Ok(())
             }
             2 => {
-                if data.len() % 3 != 0
+                if !data.len().is_multiple_of(3)
                     || self.mailbox_addr + data.len() / 3 > self.limits.max_lut_entries as usize
                 {
                     return Err(ERR_OUT_OF_RESOURCE);

@@ -115,7 +115,7 @@ pub fn erle_image(words: &[u32], size_px: (u32, u32)) -> Vec<u8> {
         out.extend_from_slice(&[0, 0]);
     }
     out.extend_from_slice(&[0, 1, 0]);
-    while out.len() % 4 != 0 {
+    while !out.len().is_multiple_of(4) {
         out.push(0);
     }
     let total = out.len() as u32;
