@@ -1,6 +1,7 @@
 //! The rig of real devices: the sync board over a serial port
-//! ([`SerialBoard`]), DMD pattern sets handed to the DMD vendor's GUI as
-//! files ([`FolderProjector`], PLACEHOLDER: no DMD driver), and camera
+//! ([`SerialBoard`]), DMD pattern sets uploaded by a [`Projector`]: a DLPC
+//! controller driver ([`super::dlpc`], with the `hid` feature) or handed to
+//! the DMD vendor's GUI as files ([`FolderProjector`], the default), and camera
 //! frames from a [`FrameSource`] (today [`FolderCamera`]: the folder the
 //! camera vendor's software writes; a GenICam backend slots in there, see
 //! [`super::camera_source`]).
@@ -19,16 +20,16 @@ use crate::board::ScanOutcome;
 use crate::raster::Raster;
 
 /// Board + projectors + cameras of a real rig.
-pub struct HardwareRig<S: FrameSource = FolderCamera> {
+pub struct HardwareRig<S: FrameSource = FolderCamera, P: Projector = FolderProjector> {
     board: SerialBoard,
-    projector: FolderProjector,
+    projector: P,
     cameras: S,
     heads: usize,
 }
 
-impl<S: FrameSource> HardwareRig<S> {
+impl<S: FrameSource, P: Projector> HardwareRig<S, P> {
     /// A rig of `heads` heads from its three parts.
-    pub fn new(board: SerialBoard, projector: FolderProjector, cameras: S, heads: usize) -> Self {
+    pub fn new(board: SerialBoard, projector: P, cameras: S, heads: usize) -> Self {
         HardwareRig {
             board,
             projector,
@@ -38,14 +39,14 @@ impl<S: FrameSource> HardwareRig<S> {
     }
 }
 
-impl<S: FrameSource> Board for HardwareRig<S> {
+impl<S: FrameSource, P: Projector> Board for HardwareRig<S, P> {
     fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError> {
         self.cameras.arm(&frames_per_head(plan, self.heads))?;
         self.board.run_plan(plan)
     }
 }
 
-impl<S: FrameSource> Projector for HardwareRig<S> {
+impl<S: FrameSource, P: Projector> Projector for HardwareRig<S, P> {
     fn dmd_size_px(&self, head: usize) -> Result<(u32, u32), RigError> {
         self.projector.dmd_size_px(head)
     }
@@ -64,7 +65,7 @@ impl<S: FrameSource> Projector for HardwareRig<S> {
     }
 }
 
-impl<S: FrameSource> Camera for HardwareRig<S> {
+impl<S: FrameSource, P: Projector> Camera for HardwareRig<S, P> {
     fn image_size_px(&self, head: usize) -> Result<(u32, u32), RigError> {
         self.cameras.image_size_px(head)
     }

@@ -74,6 +74,11 @@ pub struct Args {
     /// --patterns-dir; check the folder matches instead of writing it.
     #[arg(long)]
     patterns_preloaded: bool,
+    /// Hardware: drive head N's DMD controller over USB HID instead of
+    /// writing PNGs, one per head in head order: dlpc350 or dlpc900,
+    /// optionally :SERIAL (needs a build with `--features hid`).
+    #[arg(long = "projector", value_name = "dlpc350|dlpc900[:SERIAL]")]
+    projectors: Vec<String>,
     /// Hardware: bits per sample the cameras deliver (e.g. 12 in 16-bit
     /// files); default: the files' own depth (8 or 16).
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=16))]
@@ -215,7 +220,9 @@ writes a temporary and renames is read once renamed; otherwise a file counts onc
 over one poll interval. Each head must deliver exactly its trigger count within --frame-timeout-s, and
 the count must hold for --frame-settle-ms: fewer or more ends the scan with an error and no scan.ply.
 
-Projectors: PLACEHOLDER, no DMD driver. Each head's pattern set is written as PATTERNS/<head>/pattern_NNN.png
+Projectors: with --projector dlpc350[:SERIAL] or dlpc900[:SERIAL] (once per head, a build with --features hid)
+slscan uploads each head's set to its TI DLPC controller over USB HID and starts it in external-trigger mode
+(never run on a real device yet). Otherwise each head's pattern set is written as PATTERNS/<head>/pattern_NNN.png
 for the DMD vendor's GUI to load (one pattern per trigger, in file order); with --patterns-preloaded the set is
 not written but checked against what the scan needs.
 
@@ -377,23 +384,85 @@ fn scan_hardware(
         poll_interval: Duration::from_millis(args.frame_poll_ms.max(1)),
         settle: Duration::from_millis(args.frame_settle_ms),
     })?;
-    let patterns_dir = args
-        .patterns_dir
-        .clone()
-        .unwrap_or_else(|| args.out.join("dmd_patterns"));
-    let projector = FolderProjector::new(
-        patterns_dir,
-        FolderProjectorHead::of_rig(&calibration),
-        if args.patterns_preloaded {
-            PatternDelivery::Preloaded
-        } else {
-            PatternDelivery::Write
-        },
-    );
-    let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
     let source = format!("rig file {}", calibration_path.display());
-    let result = scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?;
+    let heads = calibration.heads.len();
+    let result = if args.projectors.is_empty() {
+        let patterns_dir = args
+            .patterns_dir
+            .clone()
+            .unwrap_or_else(|| args.out.join("dmd_patterns"));
+        let projector = FolderProjector::new(
+            patterns_dir,
+            FolderProjectorHead::of_rig(&calibration),
+            if args.patterns_preloaded {
+                PatternDelivery::Preloaded
+            } else {
+                PatternDelivery::Write
+            },
+        );
+        let mut rig = HardwareRig::new(board, projector, cameras, heads);
+        scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?
+    } else {
+        let projector = dlpc_projectors(&args.projectors, heads)?;
+        let mut rig = HardwareRig::new(board, projector, cameras, heads);
+        scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?
+    };
     Ok(scan::output::write_scan(&args.out, &result, progress)?)
+}
+
+/// `--projector KIND[:SERIAL]`, one per head.
+fn parse_projector(spec: &str) -> anyhow::Result<(slscan::rig::dlpc::Controller, Option<&str>)> {
+    use slscan::rig::dlpc::Controller;
+    let (kind, serial) = match spec.split_once(':') {
+        Some((k, s)) => (k, Some(s)),
+        None => (spec, None),
+    };
+    let controller = match kind {
+        "dlpc350" => Controller::Dlpc350,
+        "dlpc900" => Controller::Dlpc900,
+        other => {
+            anyhow::bail!("--projector {other}: expected dlpc350 or dlpc900 (optionally :SERIAL)")
+        }
+    };
+    Ok((controller, serial))
+}
+
+/// The heads' DLPC controllers opened over USB HID.
+#[cfg(feature = "hid")]
+fn dlpc_projectors(
+    specs: &[String],
+    heads: usize,
+) -> anyhow::Result<slscan::rig::dlpc::DlpcProjector<slscan::rig::dlpc::hid::HidapiLink>> {
+    use slscan::rig::dlpc::{hid::HidapiLink, DlpcHead, DlpcProjector, DriverConfig};
+    anyhow::ensure!(
+        specs.len() == heads,
+        "{} --projector given for a rig of {heads} heads (one per head, in head order)",
+        specs.len()
+    );
+    let exposure_us = (slscan::scan::plan::display_s() * 1e6).round() as u32;
+    let mut out = Vec::with_capacity(heads);
+    for spec in specs {
+        let (controller, serial) = parse_projector(spec)?;
+        let link = HidapiLink::open(controller, serial)
+            .with_context(|| format!("opening the {} ({spec}) over USB HID", controller.name()))?;
+        out.push(DlpcHead::new(
+            link,
+            controller,
+            DriverConfig::new(exposure_us),
+        ));
+    }
+    Ok(DlpcProjector::new(out))
+}
+
+#[cfg(not(feature = "hid"))]
+fn dlpc_projectors(specs: &[String], _heads: usize) -> anyhow::Result<FolderProjector> {
+    for spec in specs {
+        parse_projector(spec)?;
+    }
+    anyhow::bail!(
+        "--projector needs USB HID: this slscan was built without the `hid` feature \
+         (cargo build --release -p slscan --features hid)"
+    )
 }
 
 /// Sizes from the calibration (both heads' DMDs must match: one pattern
