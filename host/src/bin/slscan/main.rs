@@ -25,6 +25,8 @@ enum Command {
     Reconstruct(cmd::reconstruct::Args),
     /// Plan, capture and reconstruct a scan end to end.
     Scan(cmd::scan::Args),
+    /// List the DMD controllers on the USB bus (feature `hid`).
+    Devices(cmd::devices::Args),
     /// Register cloud B onto cloud A (PLY files from any tool) by ICP.
     Register(cmd::register::Args),
     /// Register cloud B onto cloud A and merge them into one cloud.
@@ -48,6 +50,7 @@ fn main() -> std::process::ExitCode {
         Command::Calibration(args) => cmd::calibration_io::run(args),
         Command::Reconstruct(args) => cmd::reconstruct::run(args),
         Command::Scan(args) => cmd::scan::run(args),
+        Command::Devices(args) => cmd::devices::run(args),
         Command::Register(args) => cmd::register::run(args),
         Command::Fuse(args) => cmd::fuse::run(args),
     };

@@ -9,6 +9,7 @@ pub mod calibrate_sim;
 pub mod calibrate_sim_options;
 pub mod calibration_io;
 pub mod calibration_print;
+pub mod devices;
 pub mod fuse;
 pub mod parse;
 pub mod patterns;
