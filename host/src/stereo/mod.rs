@@ -8,10 +8,10 @@
 //! StereoHead --(rectify: Bouguet rotations, common focal length)--> Rectification
 //!     (set up once: each left pixel's rectified position, each rectified right
 //!      pixel's original distorted right pixel)
-//! right u, B --(matching::rectify_row: bilinear where all four neighbours are valid)
+//! right u, B --(matching::resample_row: bicubic where all 16 neighbours are valid)
 //!     --> rectified right rows + monotonic runs
-//! left pixel u --(matching::find: bracketing pair on rectified rows floor(y), floor(y)+1,
-//!     linear interpolation)--> disparity, local slope du/dx
+//! left pixel u --(matching::find: bracketing pair on the four rectified rows around
+//!     the pixel's y, cubic solve along each, cubic across them)--> disparity, du/dx
 //!     --(triangulate: Z = f B / d; sigma = coordinate noise / slope -> disparity -> ray)
 //!     --> PixelMaps indexed by the left camera's original pixels --> cloud
 //! ```
