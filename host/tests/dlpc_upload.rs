@@ -85,6 +85,21 @@ fn uploads_reach_the_dmd_exactly_and_their_cost_is_printed() {
 }
 
 #[test]
+fn six_grey_patterns_in_two_images_show_in_order_through_the_two_entry_image_lut() {
+    for c in [Controller::Dlpc350, Controller::Dlpc900] {
+        let size = (64, 32);
+        let mut head = simulated_head(c, size, DriverConfig::new(10_000));
+        let set: Vec<Raster<f32>> = (0..6)
+            .map(|k| Raster::filled(64, 32, (10 * k + 5) as f32 / 255.0))
+            .collect();
+        head.load(&set, &[WHITE; 6]).unwrap();
+        let levels: Vec<f32> = shown(&head).iter().map(|p| p.values[0]).collect();
+        let want: Vec<f32> = set.iter().map(|p| p.data[0]).collect();
+        assert_eq!(levels, want, "{}", c.name());
+    }
+}
+
+#[test]
 fn a_set_over_the_controllers_memory_is_refused_before_any_byte() {
     // 51 8-bit patterns = 17 images; the DLPC900 holds 16 (400 bit planes).
     let c = Controller::Dlpc900;

@@ -421,6 +421,11 @@ impl DlpcSim {
                 }
                 self.image_lut.truncate(self.mailbox_addr);
                 self.image_lut.extend_from_slice(data);
+                // The DLPC350 reads a two-entry image LUT swapped (TI's
+                // DLPC350_SendImageLut sends those two reversed for it).
+                if self.image_lut.len() == 2 {
+                    self.image_lut.swap(0, 1);
+                }
                 Ok(())
             }
             2 => {

@@ -114,8 +114,14 @@ pub fn sequence(setup: &SequenceSetup) -> Vec<Message> {
         PAT_CONFIG,
         &[(n - 1) as u8, 1, (n - 1).min(255) as u8, (images - 1) as u8],
     ));
-    // Image index LUT: flash slots in display order.
-    let image_lut: Vec<u8> = (0..images as u8).collect();
+    // Image index LUT: flash slots in display order. With exactly two
+    // entries the controller reads them swapped, so TI's own API sends them
+    // the other way round (dlpc350_api.cpp, DLPC350_SendImageLut, "special
+    // case of 2 entries").
+    let mut image_lut: Vec<u8> = (0..images as u8).collect();
+    if image_lut.len() == 2 {
+        image_lut.swap(0, 1);
+    }
     out.extend([
         Message::write(MBOX_CONTROL, &[1]),
         Message::write(MBOX_ADDRESS, &[0]),
