@@ -18,7 +18,7 @@
 //!
 //! The link is the small [`HidLink`] trait: hil-sim's byte-level
 //! controller (`crate::sim::dlpc`) or, with the `hid` cargo feature, a real
-//! device through hidapi ([`hid`]).
+//! device through hidapi (module `hid`).
 
 pub mod dlpc350;
 pub mod dlpc900;
