@@ -1,13 +1,15 @@
 //! `slscan patterns` and `slscan reconstruct` end to end on small formula-based renders
 //! (`slscan::synth`, not twin renders), and the errors bad inputs must give.
 
+#[path = "support/synth_capture.rs"]
+mod synth_capture;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use slscan::calibration::{write_rig, Head, PinholeModel, RigCalibration};
+use slscan::calibration::PinholeModel;
 use slscan::io::images::save_gray_png;
 use slscan::raster::Raster;
-use slscan::synth::{self, Lighting};
 
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("slscan-cli-{}-{name}", std::process::id()));
@@ -18,32 +20,7 @@ fn tmp(name: &str) -> PathBuf {
 
 /// Renders 12 frames (3 periods x 4 steps) as 16-bit PNGs and writes the matching rig.
 fn capture(dir: &Path) -> PathBuf {
-    let (camera, projector) = synth::stereo_rig(
-        PinholeModel::ideal(64, 48, 160.0),
-        PinholeModel::ideal(228, 285, 450.0),
-        0.15,
-        0.5,
-    );
-    let truth = synth::trace(&synth::two_spheres(0.5, 0.6), &camera, &projector);
-    let light = Lighting {
-        ambient: 0.1,
-        gain: 0.7,
-        noise_sigma: 0.003,
-    };
-    let frames = synth::render_fringe_set(&truth, &[9.0, 10.0, 11.0], 4, true, &light, 5);
-    let images = dir.join("images");
-    std::fs::create_dir_all(&images).unwrap();
-    for (i, f) in frames.iter().enumerate() {
-        save_gray_png(&images.join(format!("frame_{i:02}.png")), f, true).unwrap();
-    }
-    let rig = RigCalibration::single(Head {
-        name: "A".into(),
-        camera,
-        projector,
-        view_errors: vec![],
-    });
-    write_rig(&dir.join("rig.json"), &rig).unwrap();
-    images
+    synth_capture::capture_with(dir, PinholeModel::ideal(64, 48, 160.0))
 }
 
 fn reconstruct(dir: &Path, images: &Path, rig: &Path) -> std::process::Output {

@@ -2,13 +2,14 @@
 //! rig exported to OpenCV YAML and imported back gives the same points as with the
 //! original rig file; bad files are refused with a clear message and no output.
 
+#[path = "support/synth_capture.rs"]
+mod synth_capture;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use slscan::calibration::{read_rig, write_rig, Head, PinholeModel, RigCalibration};
-use slscan::io::images::save_gray_png;
+use slscan::calibration::{read_rig, PinholeModel};
 use slscan::io::ply_read::read_ply;
-use slscan::synth::{self, Lighting};
 
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("slscan-opencv-{}-{name}", std::process::id()));
@@ -22,28 +23,7 @@ fn tmp(name: &str) -> PathBuf {
 fn capture(dir: &Path) -> PathBuf {
     let mut camera = PinholeModel::ideal(64, 48, 160.0);
     camera.distortion.k1 = -0.02;
-    let (camera, projector) =
-        synth::stereo_rig(camera, PinholeModel::ideal(228, 285, 450.0), 0.15, 0.5);
-    let truth = synth::trace(&synth::two_spheres(0.5, 0.6), &camera, &projector);
-    let light = Lighting {
-        ambient: 0.1,
-        gain: 0.7,
-        noise_sigma: 0.003,
-    };
-    let frames = synth::render_fringe_set(&truth, &[9.0, 10.0, 11.0], 4, true, &light, 5);
-    let images = dir.join("images");
-    std::fs::create_dir_all(&images).unwrap();
-    for (i, f) in frames.iter().enumerate() {
-        save_gray_png(&images.join(format!("frame_{i:02}.png")), f, true).unwrap();
-    }
-    let rig = RigCalibration::single(Head {
-        name: "A".into(),
-        camera,
-        projector,
-        view_errors: vec![],
-    });
-    write_rig(&dir.join("rig.json"), &rig).unwrap();
-    images
+    synth_capture::capture_with(dir, camera)
 }
 
 fn slscan(args: &[&str]) -> Output {
