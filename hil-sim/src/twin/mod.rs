@@ -60,6 +60,7 @@ pub mod pattern;
 pub mod random_scene;
 pub mod ray;
 pub mod render;
+pub mod ring_scenes;
 pub mod scatter;
 pub mod scene;
 pub mod scenes;

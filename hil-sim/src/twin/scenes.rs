@@ -115,6 +115,16 @@ pub const BUILT_IN: &[BuiltIn] = &[
         build: checkerboard,
     },
     BuiltIn {
+        name: "ring-3",
+        about: "turbine-blade-like part (thick cambered airfoil, tapered, unevenly twisted) inside a ring of three heads 120 deg apart: no two see it whole, all three do",
+        build: super::ring_scenes::ring3,
+    },
+    BuiltIn {
+        name: "ring-4",
+        about: "the ring-3 turbine blade inside a ring of four heads 90 deg apart: no two see it whole, all four do",
+        build: super::ring_scenes::ring4,
+    },
+    BuiltIn {
         name: "bumpy-mesh",
         about: "100k-triangle bumpy sphere mesh on a wall (BVH benchmark)",
         build: bumpy_mesh,
@@ -130,7 +140,7 @@ pub fn built_in(name: &str, detail: &Detail) -> Result<(Scene, Rig), TwinError> 
     (b.build)(detail)
 }
 
-fn camera(name: &str, detail: &Detail, eye: V3, target: V3) -> Camera {
+pub(super) fn camera(name: &str, detail: &Detail, eye: V3, target: V3) -> Camera {
     let (w, h) = detail.camera;
     Camera {
         name: name.into(),
@@ -148,7 +158,7 @@ fn camera(name: &str, detail: &Detail, eye: V3, target: V3) -> Camera {
     }
 }
 
-fn projector(name: &str, detail: &Detail, eye: V3, target: V3) -> Projector {
+pub(super) fn projector(name: &str, detail: &Detail, eye: V3, target: V3) -> Projector {
     let (w, h) = detail.projector;
     let mut k = Intrinsics::from_fov(w, h, 56.0);
     // DMD projectors throw upwards: principal point near the bottom edge.
