@@ -19,6 +19,7 @@ mod sample;
 pub use sample::Sample;
 
 use crate::raster::Raster;
+use crate::simd::{simd_run, Simd};
 
 /// What can be wrong with a set of phase-shifted frames.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -227,6 +228,10 @@ impl PhaseShift {
     }
 
     /// Decodes whole frames (in shift order) into wrapped phase, modulation and background.
+    ///
+    /// Rayon over rows, each through [`PhaseShift::decode_row_scaled`] (the pipeline's kernel)
+    /// built for the widest SIMD the CPU has, so a pixel gets the same bits as from
+    /// [`PhaseShift::decode`].
     pub fn wrapped_phase(&self, frames: &[&Raster<f32>]) -> Result<WrappedPhase, PhaseError> {
         if frames.len() != self.steps {
             return Err(PhaseError::WrongFrameCount {
@@ -236,9 +241,11 @@ impl PhaseShift {
         }
         let (width, height) = check_sizes(frames)?;
         let len = width * height;
-        let mut phase = vec![0.0f32; len];
-        let mut modulation = vec![0.0f32; len];
-        let mut background = vec![0.0f32; len];
+        // Every element is written by the row pass; filled in parallel on huge pages so
+        // the fresh memory's page faults are not one thread's serial cost.
+        let [mut phase, mut modulation, mut background] =
+            [(); 3].map(|_| crate::huge_pages::filled_vec(len, 0.0f32));
+        let simd = Simd::best();
         use rayon::prelude::*;
         phase
             .par_chunks_mut(width)
@@ -248,7 +255,8 @@ impl PhaseShift {
             .for_each(|(y, ((p, m), b))| {
                 let span = y * width..(y + 1) * width;
                 let rows: Vec<&[f32]> = frames.iter().map(|f| &f.data[span.clone()]).collect();
-                self.decode_row(&rows, p, m, b);
+                // The pipeline's row kernel, built for the widest SIMD the CPU has.
+                simd_run!(simd, self.decode_row_scaled(&rows, 1.0, p, m, b));
             });
         let wrap = |data| Raster {
             width,
@@ -503,6 +511,34 @@ mod tests {
                         [p[x], m[x], b[x]].map(f32::to_bits),
                         [wp, wm, wb].map(f32::to_bits),
                         "column {}", x
+                    );
+                }
+            }
+
+            #[test]
+            fn map_api_gives_the_per_pixel_bits(
+                steps in 3usize..7,
+                (width, height) in (1usize..41, 1usize..5),
+                samples in proptest::collection::vec(-0.5f32..1.5, 6 * 40 * 4),
+            ) {
+                // The whole-map API through the pipeline's row kernel (in its AVX2 build
+                // where the CPU has one) against the per-pixel decode.
+                let shift = PhaseShift::new(steps).unwrap();
+                let len = width * height;
+                let frames: Vec<Raster<f32>> = samples
+                    .chunks(len)
+                    .take(steps)
+                    .map(|c| Raster { width, height, data: c.to_vec() })
+                    .collect();
+                let refs: Vec<&Raster<f32>> = frames.iter().collect();
+                let out = shift.wrapped_phase(&refs).unwrap();
+                for i in 0..len {
+                    let (wp, wm, wb) = shift.decode(frames.iter().map(|f| f.data[i]));
+                    prop_assert_eq!(
+                        [out.phase.data[i], out.modulation.data[i], out.background.data[i]]
+                            .map(f32::to_bits),
+                        [wp, wm, wb].map(f32::to_bits),
+                        "pixel {}", i
                     );
                 }
             }

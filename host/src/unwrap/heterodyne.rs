@@ -14,6 +14,7 @@ use rayon::prelude::*;
 
 use super::{check_temporal_inputs, fringe_order, AbsolutePhase, PixelStatus, UnwrapError};
 use crate::raster::Raster;
+use crate::simd::{simd_run, Simd};
 
 /// Largest number of periods (a fixed bound keeps the per-pixel kernel on the stack).
 pub const MAX_PERIODS: usize = 8;
@@ -184,10 +185,31 @@ impl Heterodyne {
     /// If `wrapped.len()` is not `periods x absolute.len()` (a caller bug, not bad data).
     #[inline(always)]
     pub fn unwrap_row(&self, wrapped: &[f32], absolute: &mut [f32]) {
-        const TILE: usize = 64;
         let k = self.periods_px.len();
         let len = absolute.len();
         assert_eq!(wrapped.len(), k * len, "one wrapped row per period");
+        let mut rows: [&[f32]; MAX_PERIODS] = [&[]; MAX_PERIODS];
+        for (p, row) in rows.iter_mut().take(k).enumerate() {
+            *row = &wrapped[p * len..(p + 1) * len];
+        }
+        self.unwrap_rows(&rows[..k], absolute);
+    }
+
+    /// [`Heterodyne::unwrap_row`] with each period's row its own slice (`wrapped[p][x]`):
+    /// the kernel of both the pipeline and [`Heterodyne::unwrap`], so they agree bit for
+    /// bit.
+    ///
+    /// # Panics
+    /// If there is not one row per period, each `absolute.len()` long.
+    #[inline(always)]
+    pub fn unwrap_rows(&self, wrapped: &[&[f32]], absolute: &mut [f32]) {
+        const TILE: usize = 64;
+        let k = self.periods_px.len();
+        let len = absolute.len();
+        assert!(
+            wrapped.len() == k && wrapped.iter().all(|r| r.len() == len),
+            "one wrapped row per period"
+        );
         let tau = std::f32::consts::TAU;
         let max_residual = self.max_residual_rad;
         // Zeroed once per row, not per tile (4 KiB each: zeroing them per tile cost as much
@@ -198,7 +220,7 @@ impl Heterodyne {
         while x0 < len {
             let n = TILE.min(len - x0);
             for p in 0..k {
-                level[p][..n].copy_from_slice(&wrapped[p * len + x0..p * len + x0 + n]);
+                level[p][..n].copy_from_slice(&wrapped[p][x0..x0 + n]);
             }
             chain[0] = level[0];
             for (l, slot) in chain.iter_mut().enumerate().take(k).skip(1) {
@@ -239,6 +261,10 @@ impl Heterodyne {
 
     /// Unwraps whole maps (same order as the periods). Pixels outside `mask` are
     /// [`PixelStatus::Masked`].
+    ///
+    /// Rayon over rows, each through [`Heterodyne::unwrap_rows`] built for the widest
+    /// SIMD the CPU has: the pipeline's kernel, so a pixel gets the same bits as from
+    /// [`Heterodyne::unwrap_pixel`].
     pub fn unwrap(
         &self,
         wrapped: &[&Raster<f32>],
@@ -246,27 +272,26 @@ impl Heterodyne {
     ) -> Result<AbsolutePhase, UnwrapError> {
         let (width, height) =
             check_temporal_inputs("heterodyne", self.periods_px.len(), wrapped, mask)?;
-        let mut phase = vec![f32::NAN; width * height];
-        let mut status = vec![PixelStatus::Masked; width * height];
+        // Every element is written by the row pass; filled in parallel on huge pages so
+        // the fresh memory's page faults are not one thread's serial cost.
+        let mut phase = crate::huge_pages::filled_vec(width * height, 0.0f32);
+        let mut status = crate::huge_pages::filled_vec(width * height, PixelStatus::Masked);
+        let simd = Simd::best();
         phase
-            .par_iter_mut()
-            .zip(status.par_iter_mut())
+            .par_chunks_mut(width.max(1))
+            .zip(status.par_chunks_mut(width.max(1)))
             .enumerate()
-            .for_each(|(i, (p, s))| {
-                if mask.is_some_and(|m| !m.data[i]) {
-                    return;
+            .for_each(|(y, (phase, status))| {
+                let span = y * width..(y + 1) * width;
+                let mut rows: [&[f32]; MAX_PERIODS] = [&[]; MAX_PERIODS];
+                for (row, map) in rows.iter_mut().zip(wrapped) {
+                    *row = &map.data[span.clone()];
                 }
-                let mut w = [0.0f32; MAX_PERIODS];
-                for (slot, map) in w.iter_mut().zip(wrapped) {
-                    *slot = map.data[i];
-                }
-                match self.unwrap_pixel(&w) {
-                    Some(v) => {
-                        *p = v;
-                        *s = PixelStatus::Valid;
-                    }
-                    None => *s = PixelStatus::Unreliable,
-                }
+                let mask = mask.map(|m| &m.data[span]);
+                simd_run!(simd, {
+                    self.unwrap_rows(&rows[..wrapped.len()], phase);
+                    status_row(phase, status, mask);
+                });
             });
         Ok(AbsolutePhase {
             phase: Raster {
@@ -281,6 +306,38 @@ impl Heterodyne {
             },
             period_px: self.periods_px[0],
         })
+    }
+}
+
+/// One row's status from its unwrapped phase (NaN: refused) and mask, the phase set to
+/// NaN where masked. Selects only, so the loop vectorises.
+#[inline(always)]
+fn status_row(phase: &mut [f32], status: &mut [PixelStatus], mask: Option<&[bool]>) {
+    let status = &mut status[..phase.len()];
+    match mask {
+        Some(mask) => {
+            let mask = &mask[..phase.len()];
+            for x in 0..phase.len() {
+                let refused = phase[x].is_nan();
+                status[x] = if !mask[x] {
+                    PixelStatus::Masked
+                } else if refused {
+                    PixelStatus::Unreliable
+                } else {
+                    PixelStatus::Valid
+                };
+                phase[x] = if mask[x] { phase[x] } else { f32::NAN };
+            }
+        }
+        None => {
+            for x in 0..phase.len() {
+                status[x] = if phase[x].is_nan() {
+                    PixelStatus::Unreliable
+                } else {
+                    PixelStatus::Valid
+                };
+            }
+        }
     }
 }
 
@@ -452,6 +509,45 @@ mod tests {
                     let w: Vec<f32> = (0..k).map(|p| wrapped[p * len + x]).collect();
                     let want = h.unwrap_pixel(&w).unwrap_or(f32::NAN);
                     prop_assert_eq!(want.to_bits(), row[x].to_bits());
+                }
+            }
+
+            #[test]
+            fn map_api_is_the_pixel_kernel(
+                k in 2usize..5,
+                (width, height) in (1usize..90, 1usize..4),
+                phases in proptest::collection::vec(-3.2f32..3.2, 4 * 89 * 3),
+                masked in proptest::collection::vec(proptest::bool::weighted(0.2), 89 * 3),
+                nan_at in 0usize..89 * 3,
+                with_mask: bool,
+            ) {
+                // Whole maps through the row kernel (SIMD build, status pass) against the
+                // per-pixel kernel: same bits where valid, NaN and the right status
+                // elsewhere, NaN input refused.
+                let periods = [20.0, 22.0, 24.5, 27.0];
+                let h = Heterodyne::new(&periods[..k], 150.0, 1.2).unwrap();
+                let len = width * height;
+                let mut maps: Vec<Raster<f32>> = phases
+                    .chunks(len)
+                    .take(k)
+                    .map(|c| Raster { width, height, data: c.to_vec() })
+                    .collect();
+                maps[k - 1].data[nan_at % len] = f32::NAN;
+                let mask = Raster { width, height, data: masked[..len].iter().map(|m| !m).collect() };
+                let refs: Vec<&Raster<f32>> = maps.iter().collect();
+                let out = h.unwrap(&refs, with_mask.then_some(&mask)).unwrap();
+                for i in 0..len {
+                    let w: Vec<f32> = maps.iter().map(|m| m.data[i]).collect();
+                    let (want, status) = if with_mask && !mask.data[i] {
+                        (f32::NAN, PixelStatus::Masked)
+                    } else {
+                        match h.unwrap_pixel(&w) {
+                            Some(v) => (v, PixelStatus::Valid),
+                            None => (f32::NAN, PixelStatus::Unreliable),
+                        }
+                    };
+                    prop_assert_eq!(out.status.data[i], status, "pixel {}", i);
+                    prop_assert_eq!(out.phase.data[i].to_bits(), want.to_bits(), "pixel {}", i);
                 }
             }
         }
