@@ -148,6 +148,20 @@ pub enum PlanError {
         /// Head index.
         head: u8,
     },
+    /// The plan has more heads than the board has lines for: each head needs
+    /// two trigger outputs and two feedback inputs. Listed last so the
+    /// variants before it keep their postcard index on the wire.
+    #[error("the plan drives {heads} heads; this board has {output_channels} trigger lines and {feedback_channels} feedback lines (two of each per head), {max_heads} heads")]
+    TooManyHeadsForBoard {
+        /// Heads in the plan.
+        heads: u8,
+        /// The board's trigger outputs.
+        output_channels: u8,
+        /// The board's feedback inputs.
+        feedback_channels: u8,
+        /// Heads the board can drive (`BoardLimits::max_heads`).
+        max_heads: u8,
+    },
 }
 
 /// A frame could not be read or written.
@@ -331,7 +345,7 @@ mod tests {
             e.to_string(),
             "exposure 0 slot 3: pattern period 200000 ns is below the DMD minimum 235000 ns"
         );
-        assert_eq!(CapacityError::TooManyHeads.to_string(), "more than 2 heads");
+        assert_eq!(CapacityError::TooManyHeads.to_string(), "more than 4 heads");
         let wire: WireError = FrameError::CrcMismatch {
             received: 1,
             computed: 2,

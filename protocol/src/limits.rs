@@ -17,8 +17,12 @@ pub const MAX_PAYLOAD_BYTES: usize = 500;
 /// Length of the CRC-32 trailer of each frame.
 pub const CRC_BYTES: usize = 4;
 
-/// Heads per plan (a head = one projector + one camera).
-pub const MAX_HEADS: usize = 2;
+/// Heads per plan (a head = one projector + one camera): as many as the
+/// widest board's trigger lines allow, two lines per head (projector trigger,
+/// camera trigger). A board with fewer lines says so in
+/// [`BoardLimits::output_channels`] and validation refuses plans with more
+/// heads than it can drive ([`BoardLimits::max_heads`]).
+pub const MAX_HEADS: usize = MAX_OUTPUT_CHANNELS / 2;
 /// Exposures in one cycle of a plan (ADFP needs 31, dual-head PSP 16 + refs).
 pub const MAX_EXPOSURES: usize = 64;
 /// Pattern slots inside one exposure (seed 001 needs 24); one exposure with
@@ -31,6 +35,17 @@ pub const MAX_OUTPUT_CHANNELS: usize = 8;
 /// Timer edges in one cycle's edge table: a rising and a falling edge per
 /// projector slot per head plus per camera exposure per head.
 pub const MAX_EDGES: usize = 2 * MAX_HEADS * (MAX_SLOTS_PER_CYCLE + MAX_EXPOSURES);
+/// Timer edges one output channel can carry in a cycle. Validation gives each
+/// channel to one device of one head, so a channel carries at most a
+/// projector's two edges per slot of the cycle or a camera's two per
+/// exposure, however many heads the plan has: DMA buffers sized per channel
+/// by this stay the same size when `MAX_HEADS` grows.
+pub const MAX_EDGES_PER_CHANNEL: usize = 2 * MAX_SLOTS_PER_CYCLE;
+
+// Two trigger lines per head, and a channel index must fit the `u32` bit
+// masks validation keeps of the channels used.
+const _: () = assert!(MAX_HEADS * 2 == MAX_OUTPUT_CHANNELS && MAX_OUTPUT_CHANNELS <= 32);
+const _: () = assert!(MAX_EDGES_PER_CHANNEL >= 2 * MAX_EXPOSURES);
 
 const _: () = assert!(
     MAX_PAYLOAD_BYTES + CRC_BYTES + (MAX_PAYLOAD_BYTES + CRC_BYTES) / 254 + 2 <= MAX_FRAME_BYTES
@@ -67,7 +82,9 @@ pub struct BoardLimits {
 
 impl BoardLimits {
     /// The STM32G474 sync board: 170 MHz 32-bit timer, 4 trigger outputs
-    /// (2 projectors, 2 cameras), 4 feedback inputs.
+    /// (2 projectors, 2 cameras), 4 feedback inputs. Four lines because
+    /// TIM2 is the one 32-bit timer the firmware can give the triggers (TIM5,
+    /// the other, is the free-running board clock): so 2 heads.
     pub const STM32G474: BoardLimits = BoardLimits {
         timer_clock_hz: 170_000_000,
         output_channels: 4,
@@ -79,6 +96,31 @@ impl BoardLimits {
         min_edge_spacing_ticks: 170,
         min_start_delay_ticks: 17_000,
     };
+
+    /// Heads this board can drive: each needs two trigger outputs (projector,
+    /// camera) and two feedback inputs (projector trigger-out, camera
+    /// exposure-active), and no plan holds more than [`MAX_HEADS`].
+    ///
+    /// ```
+    /// use protocol::BoardLimits;
+    /// assert_eq!(BoardLimits::STM32G474.max_heads(), 2);
+    /// let eight_lines = BoardLimits { output_channels: 8, feedback_channels: 8, ..BoardLimits::STM32G474 };
+    /// assert_eq!(eight_lines.max_heads(), 4);
+    /// ```
+    pub const fn max_heads(&self) -> usize {
+        let by_outputs = self.output_channels as usize / 2;
+        let by_feedback = self.feedback_channels as usize / 2;
+        let lines = if by_outputs < by_feedback {
+            by_outputs
+        } else {
+            by_feedback
+        };
+        if lines < MAX_HEADS {
+            lines
+        } else {
+            MAX_HEADS
+        }
+    }
 }
 
 /// Projector (DMD controller) models a head can use.

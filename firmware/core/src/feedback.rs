@@ -61,7 +61,8 @@ pub fn feedback_lines(plan: &ValidPlan) -> heapless::Vec<FeedbackLine, MAX_OUTPU
                 LineRole::Camera,
             ),
         ] {
-            // MAX_HEADS * 2 <= MAX_OUTPUT_CHANNELS, so this never fails.
+            // MAX_HEADS * 2 == MAX_OUTPUT_CHANNELS (asserted in protocol::limits),
+            // so this never fails.
             let _ = lines.push(FeedbackLine {
                 output_channel: out,
                 feedback_channel: fb,

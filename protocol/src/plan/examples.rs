@@ -3,10 +3,11 @@
 //!
 //! Wiring of the examples: head A = projector trigger 0, camera trigger 1,
 //! projector trigger-out feedback 0, camera exposure-active feedback 1;
-//! head B = 2, 3, 2, 3.
+//! head B = 2, 3, 2, 3; head C = 4, 5, 4, 5; head D = 6, 7, 6, 7 (C and D
+//! only on a board with 8 lines each way).
 
 use super::{HeadConfig, HeadSet, PatternSlot, ScanPlan};
-use crate::limits::{CameraModel, ProjectorModel};
+use crate::limits::{CameraModel, ProjectorModel, MAX_HEADS};
 
 /// Camera exposure spacing of the slow-camera examples (Mono6Mp at ~29 fps).
 pub const SLOW_FRAME_NS: u32 = 34_000_000;
@@ -28,7 +29,7 @@ pub const CYCLE_LEAD_NS: u32 = 2_000;
 /// First projector trigger inside the long exposure.
 pub const FAST_SLOT_OFFSET_NS: u32 = 2_000;
 
-/// Head wiring of the examples: head `index` (0 = A, 1 = B).
+/// Head wiring of the examples: head `index` (0 = A, 1 = B, 2 = C, 3 = D).
 pub const fn head(index: u8, projector: ProjectorModel, camera: CameraModel) -> HeadConfig {
     HeadConfig {
         projector,
@@ -70,6 +71,22 @@ fn slow_sequence(plan: &mut ScanPlan, heads: HeadSet, patterns: u16) {
 pub fn dual_head_psp(repeat_count: u32) -> ScanPlan {
     let mut plan = new_plan(&slow_heads(), repeat_count, 16 * SLOW_FRAME_NS, 1_000);
     slow_sequence(&mut plan, HeadSet::BOTH, 16);
+    plan
+}
+
+/// Seed 000 on a rig of `heads` heads (clamped to `1..=MAX_HEADS`): every
+/// projector shows the same 4-step x 4-frequency sequence at once and every
+/// camera exposes together. Three or four heads need a board with 6 or 8
+/// lines each way; `BoardLimits::STM32G474` refuses them.
+pub fn all_heads_psp(heads: usize, repeat_count: u32) -> ScanPlan {
+    let count = heads.clamp(1, MAX_HEADS);
+    let mut wiring = [head(0, ProjectorModel::Dlpc350, CameraModel::Mono6Mp); MAX_HEADS];
+    for (index, w) in wiring.iter_mut().enumerate() {
+        *w = head(index as u8, ProjectorModel::Dlpc350, CameraModel::Mono6Mp);
+    }
+    let mut plan = new_plan(&wiring[..count], repeat_count, 16 * SLOW_FRAME_NS, 1_000);
+    let set = HeadSet::all(count).unwrap_or(HeadSet::A);
+    slow_sequence(&mut plan, set, 16);
     plan
 }
 
@@ -126,7 +143,7 @@ pub fn all() -> [ScanPlan; 5] {
 fn new_plan(heads: &[HeadConfig], repeat_count: u32, period_ns: u32, margin_ns: u32) -> ScanPlan {
     match ScanPlan::new(heads, repeat_count, period_ns, margin_ns) {
         Ok(plan) => plan,
-        // At most two heads are passed above.
+        // At most MAX_HEADS heads are passed above.
         Err(_) => unreachable!("examples use at most MAX_HEADS heads"),
     }
 }

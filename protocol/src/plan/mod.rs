@@ -34,17 +34,57 @@ use crate::limits::{
     MAX_SLOTS_PER_EXPOSURE,
 };
 
-/// A set of heads, as a bit mask (bit 0 = head A, bit 1 = head B).
+// A head set is a `u8` mask, one bit per head.
+const _: () = assert!(MAX_HEADS <= 8);
+
+/// A set of heads, as a bit mask (bit 0 = head A, bit 1 = head B, bit 2 =
+/// head C, bit 3 = head D).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 pub struct HeadSet(pub u8);
 
 impl HeadSet {
     /// Head A only.
-    pub const A: HeadSet = HeadSet(0b01);
+    pub const A: HeadSet = HeadSet(0b0001);
     /// Head B only.
-    pub const B: HeadSet = HeadSet(0b10);
-    /// Both heads.
-    pub const BOTH: HeadSet = HeadSet(0b11);
+    pub const B: HeadSet = HeadSet(0b0010);
+    /// Head C only.
+    pub const C: HeadSet = HeadSet(0b0100);
+    /// Head D only.
+    pub const D: HeadSet = HeadSet(0b1000);
+    /// Heads A and B.
+    pub const BOTH: HeadSet = HeadSet(0b0011);
+
+    /// Head `index` (0 = A) alone; `None` past [`MAX_HEADS`].
+    ///
+    /// ```
+    /// use protocol::HeadSet;
+    /// assert_eq!(HeadSet::single(2), Some(HeadSet::C));
+    /// assert_eq!(HeadSet::single(4), None);
+    /// ```
+    pub const fn single(index: usize) -> Option<HeadSet> {
+        if index < MAX_HEADS {
+            Some(HeadSet(1 << index))
+        } else {
+            None
+        }
+    }
+
+    /// The first `count` heads (A, B, ...) together; `None` past
+    /// [`MAX_HEADS`]. `all(0)` is the empty set, which validation refuses.
+    ///
+    /// ```
+    /// use protocol::HeadSet;
+    /// assert_eq!(HeadSet::all(2), Some(HeadSet::BOTH));
+    /// assert_eq!(HeadSet::all(4), Some(HeadSet(0b1111)));
+    /// assert_eq!(HeadSet::all(5), None);
+    /// ```
+    pub const fn all(count: usize) -> Option<HeadSet> {
+        if count <= MAX_HEADS {
+            Some(HeadSet(((1u16 << count) - 1) as u8))
+        } else {
+            None
+        }
+    }
 
     /// Whether head `index` (0 = A) is in the set.
     pub const fn contains(self, index: usize) -> bool {
@@ -112,7 +152,8 @@ pub struct ExposureEntry {
 /// Everything of a plan except its exposures: the first chunk on the wire.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PlanHeader {
-    /// The heads (1 or 2); head A is index 0.
+    /// The heads (1 to [`MAX_HEADS`], at most the board's
+    /// `BoardLimits::max_heads`); head A is index 0.
     pub heads: Vec<HeadConfig, MAX_HEADS>,
     /// How many times the cycle runs (>= 1).
     pub repeat_count: u32,
@@ -129,7 +170,8 @@ pub struct PlanHeader {
 /// A scan plan as parsed; validate it into a [`ValidPlan`] before use.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ScanPlan {
-    /// The heads (1 or 2); head A is index 0.
+    /// The heads (1 to [`MAX_HEADS`], at most the board's
+    /// `BoardLimits::max_heads`); head A is index 0.
     pub heads: Vec<HeadConfig, MAX_HEADS>,
     /// How many times the cycle runs (>= 1).
     pub repeat_count: u32,

@@ -9,15 +9,16 @@
 
 use super::{HeadConfig, HeadSet, PatternSlot, ScanPlan};
 use crate::limits::{
-    CameraModel, CameraProfile, ProjectorModel, ProjectorProfile, MAX_SLOTS_PER_EXPOSURE,
+    CameraModel, CameraProfile, ProjectorModel, ProjectorProfile, MAX_HEADS, MAX_SLOTS_PER_EXPOSURE,
 };
 
 /// The capture modes of the seed papers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PlanKind {
-    /// Seed 000: both heads project and expose together.
+    /// Seed 000: both heads (every head of the rig, [`random_plan_on`])
+    /// project and expose together.
     DualHead,
-    /// Seed 000 reference run: one head of a dual-head rig (0 = A, 1 = B).
+    /// Seed 000 reference run: one head of the rig (0 = A, 1 = B, ...).
     HeadOnly(u8),
     /// Seed 001: many binary patterns inside one long exposure, repeated.
     Multiplexed,
@@ -77,8 +78,18 @@ pub fn random_kind(bits: &mut impl Bits) -> PlanKind {
     }
 }
 
-/// A random valid plan of `kind`.
+/// A random valid plan of `kind` on a dual-head rig (the STM32G474 board).
 pub fn random_plan(kind: PlanKind, bits: &mut impl Bits) -> ScanPlan {
+    random_plan_on(kind, 2, bits)
+}
+
+/// A random valid plan of `kind` on a rig of `rig_heads` heads (clamped to
+/// `1..=MAX_HEADS`): [`PlanKind::DualHead`] then drives all of them at once
+/// and [`PlanKind::HeadOnly`] one of them; the single-head kinds ignore it.
+/// Draws the same random bits whatever `rig_heads` is, so a seed gives the
+/// same timing on every rig size.
+pub fn random_plan_on(kind: PlanKind, rig_heads: usize, bits: &mut impl Bits) -> ScanPlan {
+    let rig_heads = rig_heads.clamp(1, MAX_HEADS);
     let projector = if bits.range(0, 1) == 0 {
         ProjectorModel::Dlpc350
     } else {
@@ -89,15 +100,17 @@ pub fn random_plan(kind: PlanKind, bits: &mut impl Bits) -> ScanPlan {
         _ if bits.range(0, 1) == 0 => CameraModel::Mono6Mp,
         _ => CameraModel::Colour208Hz,
     };
-    let two_heads = matches!(kind, PlanKind::DualHead | PlanKind::HeadOnly(_));
-    let heads = [
-        super::examples::head(0, projector, camera),
-        super::examples::head(1, projector, camera),
-    ];
-    let heads: &[HeadConfig] = if two_heads { &heads } else { &heads[..1] };
+    let whole_rig = matches!(kind, PlanKind::DualHead | PlanKind::HeadOnly(_));
+    let mut heads = [super::examples::head(0, projector, camera); MAX_HEADS];
+    for (index, head) in heads.iter_mut().enumerate() {
+        *head = super::examples::head(index as u8, projector, camera);
+    }
+    let heads: &[HeadConfig] = &heads[..if whole_rig { rig_heads } else { 1 }];
+    let every_head = HeadSet::all(heads.len()).unwrap_or(HeadSet::A);
+    let one_head = |h: u8| HeadSet::single(h as usize % heads.len()).unwrap_or(HeadSet::A);
     let (head_set, exposures, slots_per_exposure, repeat_max) = match kind {
-        PlanKind::DualHead => (HeadSet::BOTH, bits.range(1, 16), 1, 2),
-        PlanKind::HeadOnly(h) => (HeadSet(1 << (h & 1)), bits.range(1, 16), 1, 2),
+        PlanKind::DualHead => (every_head, bits.range(1, 16), 1, 2),
+        PlanKind::HeadOnly(h) => (one_head(h), bits.range(1, 16), 1, 2),
         PlanKind::Multiplexed => (HeadSet::A, 1, bits.range(1, 24), 6),
         PlanKind::Flood => (HeadSet::A, 7, 1, 1),
     };
@@ -216,5 +229,39 @@ mod tests {
                 panic!("{kind:?} gave an invalid plan: {e:?}\n{plan:?}");
             }
         }
+    }
+
+    /// Rigs of 1 to 4 heads: every plan validates on a board with a line
+    /// each way per device, and the STM32G474 (4 trigger lines) refuses
+    /// exactly the plans with more than two heads, in heads.
+    #[test]
+    fn random_plans_on_every_rig_size_validate_where_the_board_has_lines() {
+        let eight_lines = BoardLimits {
+            output_channels: 8,
+            feedback_channels: 8,
+            ..BoardLimits::STM32G474
+        };
+        let mut bits = SplitMix64(7);
+        let mut seen_heads = [false; MAX_HEADS + 1];
+        for _ in 0..2_000 {
+            let kind = random_kind(&mut bits);
+            let rig = bits.range(1, MAX_HEADS as u64) as usize;
+            let plan = random_plan_on(kind, rig, &mut bits);
+            let heads = plan.heads.len();
+            seen_heads[heads] = true;
+            if let Err(e) = plan.clone().validate(&eight_lines) {
+                panic!("{kind:?} on {rig} heads gave an invalid plan: {e:?}\n{plan:?}");
+            }
+            match plan.validate(&BoardLimits::STM32G474) {
+                Ok(_) => assert!(heads <= 2, "{heads} heads accepted by a 2-head board"),
+                Err(crate::error::PlanError::TooManyHeadsForBoard {
+                    heads: h,
+                    max_heads: 2,
+                    ..
+                }) => assert_eq!((h as usize, heads > 2), (heads, true)),
+                Err(e) => panic!("{heads} heads refused for another reason: {e:?}"),
+            }
+        }
+        assert_eq!(seen_heads, [false, true, true, true, true]);
     }
 }

@@ -57,6 +57,17 @@ fn check_heads(plan: &ScanPlan, board: &BoardLimits) -> Result<(), PlanError> {
     if plan.heads.is_empty() {
         return Err(PlanError::NoHeads);
     }
+    // Said in heads before any channel number: a rig with one head too many
+    // would otherwise read as "channel 4 out of range", which names the
+    // symptom, not the cause.
+    if plan.heads.len() > board.max_heads() {
+        return Err(PlanError::TooManyHeadsForBoard {
+            heads: plan.heads.len() as u8,
+            output_channels: board.output_channels,
+            feedback_channels: board.feedback_channels,
+            max_heads: board.max_heads() as u8,
+        });
+    }
     let mut outputs_used = 0u32;
     let mut inputs_used = 0u32;
     for (i, head) in plan.heads.iter().enumerate() {
@@ -380,6 +391,8 @@ fn check_projector(plan: &ScanPlan, head: usize, hz: u32) -> Result<(), PlanErro
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
+
     use super::*;
     use crate::plan::{examples, HeadSet, PatternSlot};
 
@@ -465,6 +478,59 @@ mod tests {
             plan.validate(&BOARD),
             Err(PlanError::ChannelReused { .. })
         ));
+    }
+
+    /// A board with a line each way per device of four heads.
+    const EIGHT_LINES: BoardLimits = BoardLimits {
+        output_channels: 8,
+        feedback_channels: 8,
+        ..BOARD
+    };
+
+    #[test]
+    fn heads_up_to_the_boards_lines_are_accepted() {
+        for heads in 1..=2 {
+            examples::all_heads_psp(heads, 1).validate(&BOARD).unwrap();
+        }
+        for heads in 1..=crate::limits::MAX_HEADS {
+            let plan = examples::all_heads_psp(heads, 1);
+            assert_eq!(plan.heads.len(), heads);
+            plan.validate(&EIGHT_LINES).unwrap();
+        }
+    }
+
+    #[test]
+    fn more_heads_than_the_board_has_lines_are_refused_in_heads() {
+        for heads in 3..=4 {
+            let e = examples::all_heads_psp(heads, 1)
+                .validate(&BOARD)
+                .unwrap_err();
+            assert_eq!(
+                e,
+                PlanError::TooManyHeadsForBoard {
+                    heads: heads as u8,
+                    output_channels: 4,
+                    feedback_channels: 4,
+                    max_heads: 2
+                }
+            );
+        }
+        // Enough trigger lines but too few feedback inputs is refused too,
+        // naming both counts.
+        let six_out = BoardLimits {
+            output_channels: 8,
+            feedback_channels: 6,
+            ..BOARD
+        };
+        examples::all_heads_psp(3, 1).validate(&six_out).unwrap();
+        let e = examples::all_heads_psp(4, 1)
+            .validate(&six_out)
+            .unwrap_err();
+        assert_eq!(
+            std::string::ToString::to_string(&e),
+            "the plan drives 4 heads; this board has 8 trigger lines and 6 feedback lines \
+             (two of each per head), 3 heads"
+        );
     }
 
     #[test]

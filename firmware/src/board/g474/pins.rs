@@ -30,6 +30,17 @@ use embassy_stm32::{Peri, Peripherals};
 pub const TRIGGER_CHANNELS: usize = 4;
 /// Feedback input-capture channels: TIM3 CH1..CH4, index = board-core feedback channel.
 pub const FEEDBACK_CHANNELS: usize = 4;
+
+// What the board tells the host (`DeviceInfo::limits`, from which the host
+// and the board's own validation take how many heads it drives) must be the
+// lines wired here: 4 trigger outputs, 4 feedback inputs, so 2 heads of the
+// protocol's `MAX_HEADS` = 4. Heads C and D need a second 32-bit timer for
+// their triggers; the G474's other one, TIM5, is the board clock.
+const _: () = assert!(
+    TRIGGER_CHANNELS == protocol::BoardLimits::STM32G474.output_channels as usize
+        && FEEDBACK_CHANNELS == protocol::BoardLimits::STM32G474.feedback_channels as usize
+        && TRIGGER_CHANNELS <= protocol::limits::MAX_OUTPUT_CHANNELS
+);
 /// DMAMUX1 request numbers of TIM2_CH1..CH4 (RM0440 table "DMAMUX: assignment
 /// of multiplexer inputs to resources"; the same numbers embassy's generated
 /// `dma_trait_impl!(timer::Dma<ChN>, TIM2, ..)` lines carry).

@@ -49,9 +49,13 @@ use super::pins::{
 use super::timebase::STROBE_TRIGGER;
 use crate::dma_table::{check_channels, counter_shift, fill_channel, ChannelLayout};
 
-/// Words one output channel's DMA buffer holds: every edge of a plan could
-/// sit on one channel, so each buffer holds the plan-wide cap (4 x 5 KiB).
-pub const MAX_EDGES_PER_CHANNEL: usize = protocol::limits::MAX_EDGES;
+/// Words one output channel's DMA buffer holds. Validation gives a channel
+/// to one device of one head, so it carries at most a projector's edges for
+/// every slot of the cycle (`protocol::limits::MAX_EDGES_PER_CHANNEL`, 2 KiB
+/// of words), not the plan-wide cap `MAX_EDGES`, which grows with the heads
+/// a plan may have (4 x 2 KiB here instead of 4 x 10 KiB); `load` still
+/// refuses a table over it with `HardwareFault::TableTooLarge`.
+pub const MAX_EDGES_PER_CHANNEL: usize = protocol::limits::MAX_EDGES_PER_CHANNEL;
 
 /// The DMA buffers, one per output channel.
 pub type DmaBuffers = [[u32; MAX_EDGES_PER_CHANNEL]; TRIGGER_CHANNELS];
