@@ -11,22 +11,9 @@
 //!   hardware-trigger mode and saves one file per trigger into a folder;
 //!   slscan reads them from there.
 //!
-//! # Extension point: a GenICam backend (not written)
-//!
-//! A direct camera driver goes here, as another `impl FrameSource`, e.g. a
-//! `GenicamCamera` in `rig/genicam_camera.rs` on Aravis (the `aravis` crate,
-//! GigE Vision and USB3 Vision) behind a cargo feature so the default build
-//! needs no system library. Its job, mapped onto the trait:
-//! - `new`: open each head's camera by serial number; set `TriggerMode=On`,
-//!   `TriggerSource=Line0` (the sync board's trigger line),
-//!   `TriggerActivation=RisingEdge`, `ExposureMode=TriggerWidth` or a fixed
-//!   `ExposureTime` shorter than the plan's exposure, `PixelFormat=Mono12`
-//!   or `Mono16`, and start acquisition with enough buffers for a whole scan.
-//! - `arm`: flush buffers left from earlier scans; remember the counts.
-//! - `take_frames`: pop buffers until `n[h]` arrived or a timeout; a gap in
-//!   the GenICam block (frame) ids names the missed triggers in
-//!   [`super::RigError::FrameCount`]'s `missed`; normalise by the pixel
-//!   format's bit depth.
+//! - [`super::genicam::aravis_camera::GenicamCameras`] (cargo feature
+//!   `genicam`): GenICam cameras (GigE Vision, USB3 Vision) through Aravis,
+//!   hardware-triggered from the sync board's line.
 //!
 //! Nothing else changes: the scan pipeline only sees [`super::Camera`].
 
@@ -45,4 +32,19 @@ pub trait FrameSource {
     /// order, values in [0, 1]. Waits for them (the source's own timeout);
     /// fails with [`RigError::FrameCount`] when too few or too many came.
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError>;
+}
+
+/// A boxed source is a source: the CLI picks the cameras at run time.
+impl<T: FrameSource + ?Sized> FrameSource for Box<T> {
+    fn image_size_px(&self, head: usize) -> Result<(u32, u32), RigError> {
+        (**self).image_size_px(head)
+    }
+
+    fn arm(&mut self, frames_per_head: &[usize]) -> Result<(), RigError> {
+        (**self).arm(frames_per_head)
+    }
+
+    fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
+        (**self).take_frames(head)
+    }
 }

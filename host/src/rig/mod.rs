@@ -24,6 +24,7 @@ pub mod camera_source;
 pub mod dlpc;
 pub mod folder_camera;
 pub mod folder_projector;
+pub mod genicam;
 pub mod hardware;
 pub mod serial_board;
 
@@ -190,6 +191,15 @@ pub enum RigError {
     NoLedControl {
         /// Head index.
         head: usize,
+    },
+    /// A GenICam camera failed, or its frames do not match its triggers
+    /// (lost packets, missing or extra frames, a time-out).
+    #[error("head {head}: GenICam camera")]
+    Genicam {
+        /// Head index.
+        head: usize,
+        /// Which camera, step or frame.
+        source: genicam::GenicamError,
     },
     /// A DMD controller refused the pattern set, or its link failed (the
     /// head then has no set loaded).

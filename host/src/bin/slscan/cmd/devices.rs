@@ -1,6 +1,7 @@
 //! `slscan devices list`: the DMD controllers on the USB bus (TI DLPC350 /
 //! DLPC900, with their firmware versions), found through hidapi (cargo
-//! feature `hid`). Cameras are not listed yet: no GenICam back end.
+//! feature `hid`), and the GenICam cameras (GigE Vision, USB3 Vision, with
+//! their firmware versions), found through Aravis (cargo feature `genicam`).
 
 /// Options of `slscan devices`.
 #[derive(clap::Args)]
@@ -11,19 +12,29 @@ pub struct Args {
 
 #[derive(clap::Subcommand)]
 enum Command {
-    /// List the DMD controllers found, with firmware versions.
+    /// List the DMD controllers and cameras found, with firmware versions.
     List,
 }
 
 /// Runs `slscan devices`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     match args.command {
-        Command::List => list(),
+        Command::List => {
+            if !cfg!(feature = "hid") && !cfg!(feature = "genicam") {
+                anyhow::bail!(
+                    "devices list needs USB HID or Aravis: this slscan was built with neither \
+                     (cargo build --release -p slscan --features hid,genicam)"
+                );
+            }
+            list_dmds()?;
+            list_cameras();
+            Ok(())
+        }
     }
 }
 
 #[cfg(feature = "hid")]
-fn list() -> anyhow::Result<()> {
+fn list_dmds() -> anyhow::Result<()> {
     use anyhow::Context;
     use slscan::rig::dlpc::hid::{list, HidapiLink};
     use slscan::rig::dlpc::{DlpcHead, DriverConfig};
@@ -55,14 +66,34 @@ fn list() -> anyhow::Result<()> {
             ),
         }
     }
-    println!("cameras: not listed (no GenICam back end yet)");
     Ok(())
 }
 
 #[cfg(not(feature = "hid"))]
-fn list() -> anyhow::Result<()> {
-    anyhow::bail!(
-        "devices list needs USB HID: this slscan was built without the `hid` feature \
-         (cargo build --release -p slscan --features hid)"
-    )
+fn list_dmds() -> anyhow::Result<()> {
+    println!("dmd controllers: not searched (this slscan was built without the `hid` feature)");
+    Ok(())
+}
+
+#[cfg(feature = "genicam")]
+fn list_cameras() {
+    use slscan::rig::genicam::aravis_camera::{describe, list_cameras};
+    let found = list_cameras();
+    if found.is_empty() {
+        println!("no GenICam camera found");
+    }
+    for c in found {
+        let firmware = describe(&c.id)
+            .map(|f| format!("firmware {f}"))
+            .unwrap_or_else(|e| format!("(firmware not read: {e})"));
+        println!(
+            "camera genicam:{} {} {} {} at {} {firmware}",
+            c.id, c.vendor, c.model, c.protocol, c.address
+        );
+    }
+}
+
+#[cfg(not(feature = "genicam"))]
+fn list_cameras() {
+    println!("cameras: not searched (this slscan was built without the `genicam` feature)");
 }

@@ -13,6 +13,7 @@ use slscan::board::ClientConfig;
 use slscan::calibration::{read_rig, RigCalibration};
 use slscan::dealias::DealiasMethod;
 use slscan::io::report::{figure, ScanReport};
+use slscan::rig::camera_source::FrameSource;
 use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{FolderProjector, FolderProjectorHead, PatternDelivery};
 use slscan::rig::hardware::HardwareRig;
@@ -26,7 +27,7 @@ use slscan::scan::{
 #[command(after_long_help = HARDWARE_HELP)]
 pub struct Args {
     /// Scan the simulated rig (board on a pty, digital-twin cameras).
-    #[arg(long, conflicts_with_all = ["port", "frames_from"])]
+    #[arg(long, conflicts_with_all = ["port", "frames_from", "cameras"])]
     sim: bool,
     /// Built-in twin scene of one or two heads (--sim; `hil-sim scenes` lists them).
     #[arg(long, default_value = "large-part")]
@@ -59,6 +60,29 @@ pub struct Args {
     /// one subfolder per head named as in the calibration (A/, B/).
     #[arg(long)]
     frames_from: Option<PathBuf>,
+    /// Hardware: take head N's frames from a GenICam camera (GigE Vision,
+    /// USB3 Vision) through Aravis instead of --frames-from, one per head in
+    /// head order: genicam:ID (`slscan devices list` shows the ids; needs a
+    /// build with `--features genicam`).
+    #[arg(
+        long = "camera",
+        value_name = "genicam:ID",
+        conflicts_with = "frames_from"
+    )]
+    cameras: Vec<String>,
+    /// Hardware, --camera: pixel format (Mono8, Mono10, Mono12, Mono14, Mono16).
+    #[arg(long, default_value = "Mono8")]
+    camera_pixel_format: String,
+    /// Hardware, --camera: exposure time in us (default: the camera's);
+    /// auto exposure and auto gain are switched off either way.
+    #[arg(long)]
+    camera_exposure_us: Option<f64>,
+    /// Hardware, --camera: gain in the camera's unit (default: the camera's).
+    #[arg(long)]
+    camera_gain: Option<f64>,
+    /// Hardware, --camera: the TriggerSource the sync board's line enters by.
+    #[arg(long, default_value = "Line0")]
+    camera_trigger_source: String,
     /// The rig calibration file (slscan-rig JSON, one or two heads): required on
     /// hardware; with --sim, reconstruct with it and seed the ICP from it
     /// (`slscan calibrate --sim --scene NAME --out FILE`) instead of the
@@ -278,17 +302,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let report = if args.sim {
         scan_sim(&args, mode, &mut on_progress).with_context(failed)?
     } else {
-        let (Some(port), Some(frames), Some(calibration)) =
-            (&args.port, &args.frames_from, &args.calibration)
+        let missing = missing_hardware_args(&args);
+        let (Some(port), Some(calibration), true) =
+            (&args.port, &args.calibration, missing.is_empty())
         else {
             anyhow::bail!(
-                "no rig given: pass --sim for the simulated rig, or --port, --frames-from and \
-                 --calibration for hardware (missing: {})",
-                missing_hardware_args(&args).join(", ")
+                "no rig given: pass --sim for the simulated rig, or --port, --calibration and \
+                 --frames-from or --camera for hardware (missing: {})",
+                missing.join(", ")
             );
         };
-        scan_hardware(&args, mode, port, frames, calibration, &mut on_progress)
-            .with_context(failed)?
+        scan_hardware(&args, mode, port, calibration, &mut on_progress).with_context(failed)?
     };
     print_summary(&report);
     if report.fused.failure.is_some() {
@@ -350,7 +374,10 @@ fn periods_for(args: &Args, mode: Mode, dmd_width_px: u32) -> Vec<f64> {
 fn missing_hardware_args(args: &Args) -> Vec<&'static str> {
     [
         ("--port", args.port.is_none()),
-        ("--frames-from", args.frames_from.is_none()),
+        (
+            "--frames-from or --camera",
+            args.frames_from.is_none() && args.cameras.is_empty(),
+        ),
         ("--calibration", args.calibration.is_none()),
     ]
     .into_iter()
@@ -363,7 +390,6 @@ fn scan_hardware(
     args: &Args,
     mode: Mode,
     port: &Path,
-    frames: &Path,
     calibration_path: &Path,
     progress: &mut dyn FnMut(Progress),
 ) -> anyhow::Result<ScanReport> {
@@ -376,14 +402,7 @@ fn scan_hardware(
     scan::output::remove_stale(&args.out)?;
     let board = SerialBoard::open(port, ClientConfig::default())
         .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
-    let cameras = FolderCamera::new(FolderCameraConfig {
-        root: frames.to_owned(),
-        heads: FolderHead::of_rig(&calibration),
-        bit_depth: args.bit_depth,
-        timeout: Duration::from_secs_f64(args.frame_timeout_s.max(0.0)),
-        poll_interval: Duration::from_millis(args.frame_poll_ms.max(1)),
-        settle: Duration::from_millis(args.frame_settle_ms),
-    })?;
+    let cameras = frame_source(args, &calibration)?;
     let source = format!("rig file {}", calibration_path.display());
     let heads = calibration.heads.len();
     let result = if args.projectors.is_empty() {
@@ -408,6 +427,101 @@ fn scan_hardware(
         scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?
     };
     Ok(scan::output::write_scan(&args.out, &result, progress)?)
+}
+
+/// The heads' cameras: GenICam devices (`--camera`) or the folder the
+/// vendor's software fills (`--frames-from`).
+fn frame_source(args: &Args, calibration: &RigCalibration) -> anyhow::Result<Box<dyn FrameSource>> {
+    if !args.cameras.is_empty() {
+        return genicam_cameras(args, calibration);
+    }
+    let frames = args
+        .frames_from
+        .as_ref()
+        .context("--frames-from or --camera is needed on hardware")?;
+    Ok(Box::new(FolderCamera::new(FolderCameraConfig {
+        root: frames.to_owned(),
+        heads: FolderHead::of_rig(calibration),
+        bit_depth: args.bit_depth,
+        timeout: Duration::from_secs_f64(args.frame_timeout_s.max(0.0)),
+        poll_interval: Duration::from_millis(args.frame_poll_ms.max(1)),
+        settle: Duration::from_millis(args.frame_settle_ms),
+    })?))
+}
+
+/// `--camera genicam:ID`: the camera id.
+fn parse_camera(spec: &str) -> anyhow::Result<&str> {
+    match spec.split_once(':') {
+        Some(("genicam", id)) if !id.is_empty() => Ok(id),
+        _ => anyhow::bail!(
+            "--camera {spec}: expected genicam:ID (`slscan devices list` shows the ids)"
+        ),
+    }
+}
+
+/// The camera settings from the `--camera-*` options.
+fn genicam_settings(args: &Args) -> anyhow::Result<slscan::rig::genicam::GenicamSettings> {
+    use slscan::rig::genicam::{GenicamSettings, PixelFormat};
+    let name = &args.camera_pixel_format;
+    let pixel_format = PixelFormat::from_name(name).with_context(|| {
+        let names: Vec<_> = PixelFormat::ALL.iter().map(|f| f.name()).collect();
+        format!(
+            "--camera-pixel-format {name}: expected one of {}",
+            names.join(", ")
+        )
+    })?;
+    Ok(GenicamSettings {
+        pixel_format,
+        exposure_us: args.camera_exposure_us,
+        gain: args.camera_gain,
+        trigger_source: args.camera_trigger_source.clone(),
+        frame_timeout: Duration::from_secs_f64(args.frame_timeout_s.max(0.0)),
+        ..GenicamSettings::default()
+    })
+}
+
+/// Each head's GenICam camera, opened and checked against the calibrated
+/// image size.
+#[cfg(feature = "genicam")]
+fn genicam_cameras(
+    args: &Args,
+    calibration: &RigCalibration,
+) -> anyhow::Result<Box<dyn FrameSource>> {
+    use slscan::rig::genicam::aravis_camera::{GenicamCamera, GenicamCameras};
+    let heads = calibration.heads.len();
+    anyhow::ensure!(
+        args.cameras.len() == heads,
+        "{} --camera given for a rig of {heads} heads (one per head, in head order)",
+        args.cameras.len()
+    );
+    let settings = genicam_settings(args)?;
+    let mut cameras = Vec::with_capacity(heads);
+    for (spec, head) in args.cameras.iter().zip(&calibration.heads) {
+        let id = parse_camera(spec)?;
+        let camera = GenicamCamera::open(id, &settings)
+            .with_context(|| format!("opening camera {id} of head {}", head.name))?;
+        let calibrated = (head.camera.width_px, head.camera.height_px);
+        anyhow::ensure!(
+            camera.image_size_px() == calibrated,
+            "camera {id} of head {} gives {:?} images, calibrated for {calibrated:?} (width, height)",
+            head.name,
+            camera.image_size_px()
+        );
+        cameras.push(camera);
+    }
+    Ok(Box::new(GenicamCameras::new(cameras)))
+}
+
+#[cfg(not(feature = "genicam"))]
+fn genicam_cameras(
+    args: &Args,
+    _calibration: &RigCalibration,
+) -> anyhow::Result<Box<dyn FrameSource>> {
+    for spec in &args.cameras {
+        parse_camera(spec)?;
+    }
+    genicam_settings(args)?;
+    Err(slscan::rig::genicam::GenicamError::NotBuilt.into())
 }
 
 /// `--projector KIND[:SERIAL]`, one per head.
