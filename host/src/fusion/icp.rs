@@ -65,7 +65,8 @@ impl Default for IcpParams {
 }
 
 impl IcpParams {
-    fn validate(&self) -> Result<(), FusionError> {
+    /// Rejects non-positive or non-finite limits and inconsistent gates.
+    pub(crate) fn validate(&self) -> Result<(), FusionError> {
         let positive = [
             ("initial_gate_m", self.initial_gate_m),
             ("final_gate_m", self.final_gate_m),

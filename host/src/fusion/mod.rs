@@ -14,6 +14,7 @@
 
 pub mod icp;
 pub mod merge;
+pub mod multiview;
 pub mod normals;
 pub mod robust;
 pub mod synthetic;
@@ -25,6 +26,10 @@ pub mod agreement;
 pub use agreement::{shape_agreement, ShapeAgreement};
 pub use icp::{register, IcpParams, IcpResult, IcpTarget, RobustKernel};
 pub use merge::{merge_clouds, merge_clouds_indexed, DuplicateRule, MergeParams, MergeReport};
+pub use multiview::{
+    merge_views, register_views, MultiViewError, MultiViewParams, MultiViewResult, PairReport,
+    ViewReport,
+};
 pub use normals::estimate_normals;
 
 /// A point cloud in metres, with optional per-point normals and quality.
