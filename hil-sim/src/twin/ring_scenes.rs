@@ -36,9 +36,15 @@ use super::mesh::Mesh;
 use super::scene::{Albedo, Material, Object, Scene};
 use super::scenes::{camera, projector, Detail};
 
-/// Centre of the ring and of the blade, world frame, metres: 0.5 m in front
-/// of head 0's camera, as in every other built-in scene.
-pub const RING_CENTRE_M: [f64; 3] = [0.0, 0.0, 0.5];
+/// Centre of the blade, world frame, metres: 0.5 m in front of head 0's
+/// camera, as in every other built-in scene, and [`HEAD_RISE_M`] below it.
+pub const RING_CENTRE_M: [f64; 3] = [0.0, HEAD_RISE_M, 0.5];
+/// How far the ring of heads sits above the blade's centre, metres: each
+/// head looks down about 13 degrees, so it sees the top faces of the root
+/// platform and the tip shroud. Their normals run along the span, the one
+/// direction the blade's own faces (their normals across the span) pin
+/// only weakly.
+pub const HEAD_RISE_M: f64 = 0.12;
 /// Distance of each head's camera from the ring's centre, metres.
 pub const RING_RADIUS_M: f64 = 0.5;
 /// Camera-to-projector baseline of each head along the ring's tangent,
@@ -175,7 +181,12 @@ pub fn blade_pose() -> Pose {
 fn on_ring(phi: f64) -> (V3, V3) {
     let c = V3::from(RING_CENTRE_M);
     let out = V3::new(phi.sin(), 0.0, -phi.cos());
-    (c + RING_RADIUS_M * out, V3::new(phi.cos(), 0.0, phi.sin()))
+    // World y points down: the heads sit at y = centre - rise.
+    let up = V3::new(0.0, -HEAD_RISE_M, 0.0);
+    (
+        c + RING_RADIUS_M * out + up,
+        V3::new(phi.cos(), 0.0, phi.sin()),
+    )
 }
 
 /// `heads` heads evenly spaced on the ring, all aimed at its centre: head
@@ -232,8 +243,33 @@ pub fn blade_ring(detail: &Detail, heads: usize) -> Result<(Scene, Rig), TwinErr
             Pose::new(c + ROOM_HALF_M * normal, V3::new(0.0, yaw, 0.0)),
         )
     });
+    // A turbine blade's root platform and tip shroud: slabs across the span
+    // at its two ends (the root one wider than the blade, as a platform
+    // is), turned with the section there.
+    let slab = |name: &str, y_m: f64, twist: f64, half_m: V3| {
+        Object::new(
+            name,
+            Shape::Cuboid { half_m },
+            Material::matte(Albedo::Constant([0.7, 0.7, 0.68])),
+            blade_pose() * Pose::new(V3::new(0.0, y_m, 0.0), V3::new(0.0, twist, 0.0)),
+        )
+    };
+    let (root, tip) = (section(0.0), section(1.0));
+    let half_span = 0.5 * BLADE_SPAN_M;
+    let platform = slab(
+        "root-platform",
+        -half_span - 0.006,
+        root.3,
+        V3::new(0.6 * root.0, 0.006, 0.3 * root.0),
+    );
+    let shroud = slab(
+        "tip-shroud",
+        half_span + 0.004,
+        tip.3,
+        V3::new(0.5 * tip.0, 0.004, 0.2 * tip.0),
+    );
     let scene = Scene {
-        objects: std::iter::once(blade).chain(walls).collect(),
+        objects: [blade, platform, shroud].into_iter().chain(walls).collect(),
         // As the other scenes: about 5 % of a projector at full drive.
         ambient_surface: [0.05; 3],
         ambient_direct: [0.01; 3],
@@ -381,9 +417,9 @@ mod tests {
                 "ring-{heads}: side coverage per head {single:.3?}, pairs {pairs:.3?}, \
                  all {fused:.3}; shared by neighbours {neighbours:.3?}"
             );
-            // All heads together see the whole side (up to a sliver where
-            // the f32 mesh makes a hit-or-miss of grazing rays).
-            assert!(fused > 0.99, "ring-{heads}: all heads cover {fused}");
+            // All heads together see the whole side but the band the root
+            // platform's overhang hides from heads looking down (about 1 %).
+            assert!(fused > 0.98, "ring-{heads}: all heads cover {fused}");
             // No single head and no pair comes close: each head sees about
             // half the girth, and every pair misses a band (several per cent
             // of the area, not a rounding sliver) that only another head sees.
@@ -408,7 +444,9 @@ mod tests {
         let centre = V3::from(RING_CENTRE_M);
         assert!(rig.cameras[0].model.centre().norm() < 1e-12);
         for (c, p) in rig.cameras.iter().zip(&rig.projectors) {
-            assert!(((c.model.centre() - centre).norm() - RING_RADIUS_M).abs() < 1e-12);
+            let d = c.model.centre() - centre;
+            assert!((d.y + HEAD_RISE_M).abs() < 1e-12);
+            assert!((d.xz().norm() - RING_RADIUS_M).abs() < 1e-12);
             let baseline = (p.model.centre() - c.model.centre()).norm();
             assert!((baseline - HEAD_BASELINE_M).abs() < 1e-12);
             let px = c.model.project(&centre).unwrap();
