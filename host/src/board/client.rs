@@ -12,9 +12,9 @@ use std::time::{Duration, Instant};
 
 use protocol::limits::MAX_FRAME_BYTES;
 use protocol::{
-    decode_payload, encode_frame, BoardFrame, BoardStatus, DeviceInfo, Event, Exposure,
-    FrameAccumulator, FrameError, HostFrame, PlanHeader, PlanSummary, Request, RequestId, Response,
-    ScanReport, WireError, PROTOCOL_VERSION,
+    decode_payload, encode_frame, BoardFrame, BoardLimits, BoardStatus, DeviceInfo, Event,
+    Exposure, FrameAccumulator, FrameError, HostFrame, PlanHeader, PlanSummary, Request, RequestId,
+    Response, ScanReport, WireError, PROTOCOL_VERSION,
 };
 
 use super::error::{BoardError, LinkError};
@@ -90,6 +90,9 @@ pub struct BoardClient<T: Transport> {
     next_id: RequestId,
     events: VecDeque<Event>,
     stats: LinkStats,
+    // What the board said it can do in its last `Hello` / `GetInfo` answer:
+    // `upload_plan` checks a plan's heads against it before sending.
+    limits: Option<BoardLimits>,
 }
 
 impl<T: Transport> BoardClient<T> {
@@ -102,6 +105,7 @@ impl<T: Transport> BoardClient<T> {
             next_id: 1,
             events: VecDeque::new(),
             stats: LinkStats::default(),
+            limits: None,
         }
     }
 
@@ -110,6 +114,12 @@ impl<T: Transport> BoardClient<T> {
         let mut client = Self::new(transport, config);
         let info = client.hello()?;
         Ok((client, info))
+    }
+
+    /// The limits the board reported in its last `Hello` or `GetInfo`
+    /// answer; `None` before either.
+    pub fn board_limits(&self) -> Option<BoardLimits> {
+        self.limits
     }
 
     /// The link counters so far.
@@ -137,12 +147,16 @@ impl<T: Transport> BoardClient<T> {
         let request = Request::Hello {
             protocol_version: PROTOCOL_VERSION,
         };
-        expect!(self.call(request), Response::Hello(info) => info)
+        let info: DeviceInfo = expect!(self.call(request), Response::Hello(info) => info)?;
+        self.limits = Some(info.limits);
+        Ok(info)
     }
 
     /// The board's info.
     pub fn info(&mut self) -> Result<DeviceInfo, BoardError> {
-        expect!(self.call(Request::GetInfo), Response::Info(info) => info)
+        let info: DeviceInfo = expect!(self.call(Request::GetInfo), Response::Info(info) => info)?;
+        self.limits = Some(info.limits);
+        Ok(info)
     }
 
     /// Starts a plan upload.

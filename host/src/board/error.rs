@@ -74,6 +74,12 @@ pub enum BoardError {
     /// The link failed (timeout, port gone, unreadable frames).
     #[error("link to the board failed")]
     Link(#[from] LinkError),
+    /// The plan has more heads than the connected board reported lines for
+    /// (`DeviceInfo::limits`); nothing was sent. Checked on the host because
+    /// a board built for fewer heads cannot even decode such a plan's header
+    /// and would answer with a bare decode error.
+    #[error("plan not sent: {0}")]
+    PlanExceedsBoard(protocol::PlanError),
     /// The board answered and refused the request.
     #[error("board refused {request} (id {id}): {error}")]
     Refused {

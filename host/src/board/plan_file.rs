@@ -88,6 +88,9 @@ pub fn example_plans() -> Vec<(&'static str, ScanPlan)> {
             examples::multiplexed_24_at_5khz(3),
         ),
         ("flood_preliminaries.json", examples::flood_preliminaries(1)),
+        // Issue 21: a rig of three heads, which a board of 4 trigger lines
+        // refuses before anything is sent.
+        ("three_head_psp.json", examples::all_heads_psp(3, 1)),
     ]
 }
 
@@ -139,12 +142,15 @@ mod tests {
         assert!(matches!(err, PlanFileError::Parse { .. }));
         assert!(err.to_string().contains("broken.json"), "{err:?}");
 
-        // Three heads overflow the plan's capacity of two: caught while parsing.
+        // One head past the plan's capacity (MAX_HEADS) is caught while
+        // parsing; how many the board drives is checked on upload.
         let mut value: serde_json::Value =
             serde_json::from_str(&plan_to_json(&protocol::plan::examples::dual_head_psp(1)))
                 .unwrap();
         let head = value["heads"][0].clone();
-        value["heads"].as_array_mut().unwrap().push(head);
+        while value["heads"].as_array().unwrap().len() <= protocol::limits::MAX_HEADS {
+            value["heads"].as_array_mut().unwrap().push(head.clone());
+        }
         let too_many = dir.join("too_many.json");
         std::fs::write(&too_many, value.to_string()).unwrap();
         assert!(matches!(

@@ -9,7 +9,7 @@
 
 use std::time::{Duration, Instant};
 
-use protocol::{Event, PlanSummary, ScanPlan, ScanReport, ScanState};
+use protocol::{Event, PlanError, PlanSummary, ScanPlan, ScanReport, ScanState};
 
 use super::client::BoardClient;
 use super::error::BoardError;
@@ -50,8 +50,23 @@ const OVERRUN_SLACK_TICKS: u64 = 170_000_000;
 
 impl<T: Transport> BoardClient<T> {
     /// Uploads `plan` (header, then one request per exposure) and has the
-    /// board validate and compile it.
+    /// board validate and compile it. A plan with more heads than the board
+    /// reported lines for (after `hello` or `info`) is refused before
+    /// anything is sent ([`BoardError::PlanExceedsBoard`]); the rest of
+    /// validation is the board's.
     pub fn upload_plan(&mut self, plan: &ScanPlan) -> Result<PlanSummary, BoardError> {
+        if let Some(limits) = self.board_limits() {
+            if plan.heads.len() > limits.max_heads() {
+                return Err(BoardError::PlanExceedsBoard(
+                    PlanError::TooManyHeadsForBoard {
+                        heads: plan.heads.len() as u8,
+                        output_channels: limits.output_channels,
+                        feedback_channels: limits.feedback_channels,
+                        max_heads: limits.max_heads() as u8,
+                    },
+                ));
+            }
+        }
         self.begin_plan(&plan.header())?;
         for index in 0..plan.exposures.len() {
             if let Some(exposure) = plan.wire_exposure(index) {
@@ -192,6 +207,57 @@ mod tests {
             vec![answer(f.id, response)]
         });
         client
+    }
+
+    /// A plan's heads are checked against the limits the board reported
+    /// before any of the plan goes out; a plan within them is sent whole.
+    #[test]
+    fn plan_with_more_heads_than_the_board_has_lines_is_not_sent() {
+        use crate::board::test_board::{answer, info, scripted_board};
+        use protocol::{Request, Response};
+        let (mut client, board) = scripted_board(|_, f| {
+            let response = match &f.request {
+                Request::Hello { .. } => Response::Hello(info()),
+                Request::BeginPlan(_) => Response::PlanBegun,
+                Request::AddExposure { index, .. } => Response::ExposureAdded { index: *index },
+                _ => Response::PlanCommitted(PlanSummary {
+                    edges_per_cycle: 4,
+                    period_ticks: 1_000,
+                    repeat_count: 1,
+                }),
+            };
+            vec![answer(f.id, response)]
+        });
+        // Before the handshake the client knows no limits.
+        assert_eq!(client.board_limits(), None);
+        client.hello().unwrap();
+        let err = client
+            .upload_plan(&examples::all_heads_psp(3, 1))
+            .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                BoardError::PlanExceedsBoard(PlanError::TooManyHeadsForBoard {
+                    heads: 3,
+                    output_channels: 4,
+                    feedback_channels: 4,
+                    max_heads: 2
+                })
+            ),
+            "{err:?}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "plan not sent: the plan drives 3 heads; this board has 4 trigger lines and 4 \
+             feedback lines (two of each per head), 2 heads"
+        );
+        client.upload_plan(&examples::all_heads_psp(2, 1)).unwrap();
+        drop(client);
+        let seen = board.join().unwrap();
+        // Hello, then the two-head plan only: header, 16 exposures, commit.
+        assert!(matches!(seen[0].request, Request::Hello { .. }));
+        assert!(matches!(&seen[1].request, Request::BeginPlan(h) if h.heads.len() == 2));
+        assert_eq!(seen.len(), 1 + 1 + 16 + 1);
     }
 
     #[test]

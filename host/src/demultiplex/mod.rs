@@ -24,13 +24,20 @@
 //! fringes) but not against an uncorrected projector gamma, which makes
 //! even harmonics; linearise the projector or pick bins with
 //! [`smallest_safe_bins`].
+//!
+//! For K heads (issue 21) [`HeadBins`] holds one bin per head, refused with
+//! the colliding heads and bins named ([`HeadBinsError::HarmonicCollision`]),
+//! and [`smallest_safe_head_bins`] picks them; the demultiplexer below still
+//! separates two.
 
 mod bins;
+mod head_bins;
 
 pub use bins::{
     folded_bin, harmonic_aliases, phase_shift_rad, smallest_safe_bins, Alias, TemporalBins,
     MIN_STEPS, ODD_HARMONICS,
 };
+pub use head_bins::{smallest_safe_head_bins, HeadBins, HeadBinsError, GAMMA_HARMONICS};
 
 use rayon::prelude::*;
 

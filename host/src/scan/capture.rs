@@ -188,7 +188,9 @@ fn simultaneous<R: Board + Projector + Camera>(
     let mut raw = Vec::new();
     let mut frames = Vec::new();
     let mut flat = Vec::new();
-    for (h, head) in HEAD_NAMES.into_iter().enumerate() {
+    // Simultaneous modes run heads A and B (check_before_capture), whatever
+    // the length of HEAD_NAMES.
+    for (h, head) in HEAD_NAMES.into_iter().enumerate().take(2) {
         let mut taken = rig.take_frames(h)?;
         let flats = taken.split_off(count);
         let [dark, lit_a, lit_b]: [Raster<f32>; 3] =
@@ -245,7 +247,8 @@ fn multiplexed<R: Board + Projector + Camera>(
     let demux = Demultiplexer::new(bins);
     let mut raw = Vec::new();
     let mut frames = Vec::new();
-    for (h, head) in HEAD_NAMES.into_iter().enumerate() {
+    // Heads A and B, on bins 1 and 2 (check_before_capture).
+    for (h, head) in HEAD_NAMES.into_iter().enumerate().take(2) {
         let taken = rig.take_frames(h)?;
         frames.push(
             demultiplexed_frames(&demux, &taken, h)

@@ -54,8 +54,16 @@ pub(crate) use reconstruct_head::head_reconstructor;
 use reconstruct_head::reconstruct_head;
 pub use truth::{CameraTruth, GroundTruth};
 
-/// Head names in plan order.
-pub const HEAD_NAMES: [&str; 2] = ["A", "B"];
+/// Head names in plan order, one per head a plan may have
+/// (`protocol::limits::MAX_HEADS`).
+pub const HEAD_NAMES: [&str; protocol::limits::MAX_HEADS] = ["A", "B", "C", "D"];
+
+/// Heads the scan pipeline captures, reconstructs and fuses: one, or two
+/// fused by ICP of B onto A. The board and protocol take up to
+/// `protocol::limits::MAX_HEADS`, but a scan of more (issue 21) is refused
+/// with [`ScanError::HeadsNotWired`] until capture and multi-view fusion
+/// handle them.
+pub const SCAN_HEADS_WIRED: usize = 2;
 
 /// How the two heads share time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -172,6 +180,13 @@ pub enum ScanError {
     /// board has trigger lines for.
     #[error("the calibration has {heads} head(s); the sync board drives 1 to {} (two trigger lines each, protocol::limits::MAX_HEADS)", protocol::limits::MAX_HEADS)]
     HeadCount {
+        /// Heads in the calibration.
+        heads: usize,
+    },
+    /// The calibration has more heads than the scan pipeline handles yet
+    /// (within what the board and protocol take).
+    #[error("the calibration has {heads} heads; scans of more than {SCAN_HEADS_WIRED} heads are not wired yet (capture and fusion drive heads A and B only)")]
+    HeadsNotWired {
         /// Heads in the calibration.
         heads: usize,
     },
@@ -424,8 +439,13 @@ pub fn check_before_capture(
         return Err(ScanError::BadPeriod { period });
     }
     let heads = calibration.heads.len();
-    if heads == 0 || heads > protocol::limits::MAX_HEADS.min(HEAD_NAMES.len()) {
+    if heads == 0 || heads > protocol::limits::MAX_HEADS {
         return Err(ScanError::HeadCount { heads });
+    }
+    // Before anything else about heads: capture and fusion index heads A
+    // and B only, and would otherwise scan the first two of a larger rig.
+    if heads > SCAN_HEADS_WIRED {
+        return Err(ScanError::HeadsNotWired { heads });
     }
     if heads == 2 && calibration.head_to_head.is_none() {
         return Err(ScanError::NoHeadToHead);

@@ -11,7 +11,7 @@ fn rig(heads: usize, head_to_head: bool) -> RigCalibration {
         view_errors: vec![],
     };
     RigCalibration {
-        heads: ["A", "B", "C"]
+        heads: ["A", "B", "C", "D", "E"]
             .iter()
             .take(heads)
             .map(|n| head(n))
@@ -26,10 +26,24 @@ fn rigs_and_modes_the_board_cannot_run_are_refused_by_name() {
     let config = ScanConfig::new("x");
     check_before_capture(&rig(1, false), &config).unwrap();
     check_before_capture(&rig(2, true), &config).unwrap();
-    let err = check_before_capture(&rig(3, true), &config).unwrap_err();
-    assert!(matches!(err, ScanError::HeadCount { heads: 3 }), "{err}");
+    // Within the protocol's heads but past what the pipeline scans: refused
+    // as not wired yet, not scanned as its first two heads.
+    for heads in 3..=4 {
+        let err = check_before_capture(&rig(heads, true), &config).unwrap_err();
+        assert!(
+            matches!(err, ScanError::HeadsNotWired { heads: h } if h == heads),
+            "{err}"
+        );
+        assert!(
+            err.to_string()
+                .contains("scans of more than 2 heads are not wired yet"),
+            "{err}"
+        );
+    }
+    let err = check_before_capture(&rig(5, true), &config).unwrap_err();
+    assert!(matches!(err, ScanError::HeadCount { heads: 5 }), "{err}");
     assert!(
-        err.to_string().contains("sync board drives 1 to 2"),
+        err.to_string().contains("sync board drives 1 to 4"),
         "{err}"
     );
     assert!(matches!(

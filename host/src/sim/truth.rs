@@ -9,7 +9,7 @@ use nalgebra::Isometry3;
 
 use super::calibration::from_twin::{head_from_twin, pose_from_twin};
 use crate::calibration::RigCalibration;
-use crate::scan::{CameraTruth, GroundTruth, HEAD_NAMES};
+use crate::scan::{CameraTruth, GroundTruth, HEAD_NAMES, SCAN_HEADS_WIRED};
 
 /// The twin's per-pixel truth of its first `heads` cameras (head `h` is
 /// camera `h` with projector `h`) as plain data, for a scan reconstructed
@@ -124,7 +124,7 @@ pub fn scene_calibration(
         .cameras
         .len()
         .min(rig.projectors.len())
-        .min(HEAD_NAMES.len());
+        .min(SCAN_HEADS_WIRED);
     Ok(twin_calibration(&rig, heads))
 }
 

@@ -206,6 +206,11 @@ fn print_info(out: &mut impl Write, info: &DeviceInfo) -> std::io::Result<()> {
     )?;
     writeln!(
         out,
+        "heads           {} (a projector and a camera trigger, two feedback lines each)",
+        l.max_heads()
+    )?;
+    writeln!(
+        out,
         "capacity        {} exposures, {} pattern slots per cycle, {} repeats, frames <= {} B",
         l.max_exposures, l.max_slots_per_cycle, l.max_repeat_count, l.max_frame_bytes
     )?;
