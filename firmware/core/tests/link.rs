@@ -241,6 +241,27 @@ fn out_of_order_requests_are_refused_with_reasons() {
     ));
 }
 
+/// Issue 21: a plan with more heads than the board reports lines for is
+/// refused at commit, in heads (not as an out-of-range channel), and the
+/// board then takes one within its lines.
+#[test]
+fn more_heads_than_the_board_has_lines_are_refused_in_heads() {
+    let mut b = Bench::new();
+    assert_eq!(
+        refused(b.upload(&examples::all_heads_psp(3, 1))),
+        WireError::Plan(protocol::PlanError::TooManyHeadsForBoard {
+            heads: 3,
+            output_channels: 4,
+            feedback_channels: 4,
+            max_heads: 2
+        })
+    );
+    assert!(matches!(
+        b.upload(&examples::all_heads_psp(2, 1)),
+        Response::PlanCommitted(_)
+    ));
+}
+
 #[test]
 fn corrupt_and_truncated_frames_get_a_link_error_then_the_link_recovers() {
     let mut b = Bench::new();
