@@ -70,34 +70,42 @@ pub struct SimBoard {
     // applied when the board answers `PlanCommitted`.
     upload: rig::UploadReader,
     rig_heads: Vec<HeadConfig>,
+    limits: BoardLimits,
 }
 
 impl SimBoard {
-    /// A board at virtual tick 0, idle, no plan.
+    /// A board at virtual tick 0, idle, no plan: the STM32G474 sync board
+    /// (4 trigger lines, 2 heads).
     pub fn new(config: SimBoardConfig) -> Self {
+        Self::with_limits(config, BoardLimits::STM32G474)
+    }
+
+    /// A board with other `limits` than the STM32G474's, e.g. 8 trigger and
+    /// 8 feedback lines for rigs of 3 or 4 heads (issue 21): it reports them
+    /// in `DeviceInfo` and validates plans against them.
+    pub fn with_limits(config: SimBoardConfig, limits: BoardLimits) -> Self {
         let heads = (0..MAX_HEADS)
             .map(|_| SimHead::from_profiles(rig::ABSENT_HEAD, 0))
             .collect();
         let to_board = ByteFilter::new(config.faults.to_board.clone());
         let to_host = ByteFilter::new(config.faults.to_host.clone());
         Self {
-            link: Link::new(Self::device_info(config.seed)),
-            hw: SimHardware::new(BoardLimits::STM32G474, heads),
+            link: Link::new(sim_device_info(sim_board_id(config.seed), limits)),
+            hw: SimHardware::new(limits, heads),
             to_board,
             to_host,
             output: VecDeque::new(),
             upload: rig::UploadReader::default(),
             rig_heads: Vec::new(),
+            limits,
             config,
         }
     }
 
-    /// What the simulated board tells the host about itself.
+    /// What the simulated board (of [`SimBoard::new`]) tells the host about
+    /// itself.
     pub fn device_info(seed: u64) -> DeviceInfo {
-        sim_device_info(
-            0x5157_0000_0000_0000 | (seed & 0xffff_ffff),
-            BoardLimits::STM32G474,
-        )
+        sim_device_info(sim_board_id(seed), BoardLimits::STM32G474)
     }
 
     /// The configuration it was built with.
@@ -230,12 +238,18 @@ impl SimBoard {
         };
         self.hw.clear_log();
         let committed = self.link.dispatcher().sequencer().table();
-        let heads = rig::build_heads(&plan, committed, &self.config);
+        let heads = rig::build_heads(&plan, committed, &self.config, &self.limits);
         for (slot, head) in self.hw.heads_mut().iter_mut().zip(heads) {
             *slot = head;
         }
         self.rig_heads = plan.heads.to_vec();
     }
+}
+
+/// Board id of the simulated board of seed `seed`: "SIM" marked, the seed's
+/// low 32 bits.
+fn sim_board_id(seed: u64) -> u64 {
+    0x5157_0000_0000_0000 | (seed & 0xffff_ffff)
 }
 
 /// Device info of a simulated board (board-core firmware 0.1.0 on a virtual
@@ -362,6 +376,56 @@ mod tests {
                 "{shown:?}"
             );
         }
+    }
+
+    /// Issue 21: a board with a line each way per device of four heads
+    /// runs a four-head plan with every feedback edge on time and every
+    /// camera exposing; the STM32G474's 4 lines refuse it, in heads.
+    #[test]
+    fn four_heads_run_on_a_board_with_eight_lines_and_are_refused_on_four() {
+        let plan = examples::all_heads_psp(4, 1);
+        let eight_lines = BoardLimits {
+            output_channels: 8,
+            feedback_channels: 8,
+            ..BoardLimits::STM32G474
+        };
+        let mut board = SimBoard::with_limits(SimBoardConfig::default(), eight_lines);
+        start(&mut board, &plan);
+        board.run_scan();
+        let (state, report) = finished(&drain(&mut board));
+        assert_eq!(state, ScanState::Done);
+        // Four edges (trigger-out rise/fall, exposure-active rise/fall) per
+        // head per exposure.
+        assert_eq!(report.expected, 4 * 4 * 16);
+        assert_eq!(report.on_time, report.expected, "{report:?}");
+        assert_eq!(board.rig_heads().len(), 4);
+        for head in board.hardware().heads() {
+            assert_eq!(head.camera.exposures().len(), 16);
+        }
+
+        let mut two_head_board = SimBoard::new(SimBoardConfig::default());
+        call(&mut two_head_board, 1, Request::BeginPlan(plan.header()));
+        for i in 0..plan.exposures.len() {
+            let exposure = plan.wire_exposure(i).unwrap();
+            let index = i as u16;
+            call(
+                &mut two_head_board,
+                10 + i as u32,
+                Request::AddExposure { index, exposure },
+            );
+        }
+        let r = call(&mut two_head_board, 100, Request::CommitPlan);
+        assert_eq!(
+            response(&r, 100),
+            Response::Refused(protocol::WireError::Plan(
+                protocol::PlanError::TooManyHeadsForBoard {
+                    heads: 4,
+                    output_channels: 4,
+                    feedback_channels: 4,
+                    max_heads: 2
+                }
+            ))
+        );
     }
 
     #[test]

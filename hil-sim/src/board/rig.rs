@@ -84,7 +84,8 @@ pub fn answers_commit(frame: &[u8]) -> bool {
 }
 
 /// The simulated heads for `plan` (absent ones padded to `MAX_HEADS`), from
-/// their models' profiles, with the configured device faults and seeds.
+/// their models' profiles, with the configured device faults and seeds;
+/// `limits` are the simulated board's, which validated the plan.
 /// The plan as read must compile to `committed`, the dispatcher's table; if
 /// it ever did not, the heads still follow the plan's header but the DMDs
 /// keep their profile's display time.
@@ -92,10 +93,11 @@ pub fn build_heads(
     plan: &ScanPlan,
     committed: &EdgeTable,
     config: &SimBoardConfig,
+    limits: &BoardLimits,
 ) -> Vec<SimHead> {
     let same_table = plan
         .clone()
-        .validate(&BoardLimits::STM32G474)
+        .validate(limits)
         .ok()
         .and_then(|valid| EdgeTable::compile(&valid).ok())
         .is_some_and(|table| table == *committed);
