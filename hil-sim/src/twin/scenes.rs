@@ -116,7 +116,7 @@ pub const BUILT_IN: &[BuiltIn] = &[
     },
     BuiltIn {
         name: "ring-3",
-        about: "turbine-blade-like part (cambered airfoil, tapered, twisted 137 deg unevenly) inside a ring of three heads 120 deg apart: no two see it whole, all three do",
+        about: "turbine-blade-like part (cambered airfoil, tapered, twisted 137 deg unevenly, root platform, tip shroud) inside a ring of three heads 120 deg apart looking down 13 deg: no two see it whole, all three do",
         build: super::ring_scenes::ring3,
     },
     BuiltIn {
