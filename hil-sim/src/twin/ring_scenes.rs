@@ -429,7 +429,11 @@ mod tests {
             for &(pair, c) in &pairs {
                 assert!(c < fused - 0.03, "ring-{heads}: pair {pair:?} covers {c}");
             }
-            // Neighbours share a strip to register on.
+            // Neighbours share a strip to register on. (Counted here with
+            // grazing views; with camera and projector both within 70 deg of
+            // the normal, where fringes keep their contrast, ring-4's strips
+            // keep 4-17 % of the side but ring-3's shrink to 0-2 %, too little to
+            // register heads 0 and 1 on: see tests/ring_registration.rs.)
             for &o in &neighbours {
                 assert!(o > 0.05, "ring-{heads}: neighbour overlaps {neighbours:?}");
             }
