@@ -17,6 +17,18 @@ pub fn filled_vec<T: Clone + Send + Sync>(len: usize, value: T) -> Vec<T> {
     v
 }
 
+/// Resizes `v` to `len` elements: in place when its allocation is large enough, else a
+/// fresh one on huge pages, filled in parallel (see [`filled_vec`]).
+pub(crate) fn sized<T: Clone + Send + Sync>(v: &mut Vec<T>, len: usize, fill: T) {
+    if v.capacity() >= len {
+        v.resize(len, fill);
+    } else {
+        // Free the old allocation first: a scan's buffers are hundreds of MB.
+        *v = Vec::new();
+        *v = filled_vec(len, fill);
+    }
+}
+
 /// Advises the kernel to back `v`'s allocation with huge pages (whole 2 MiB pages inside
 /// it only; small vectors are left alone). Pages already touched keep their backing.
 fn advise_allocation<T>(v: &[T]) {

@@ -229,10 +229,33 @@ impl PhaseShift {
 
     /// Decodes whole frames (in shift order) into wrapped phase, modulation and background.
     ///
-    /// Rayon over rows, each through [`PhaseShift::decode_row_scaled`] (the pipeline's kernel)
-    /// built for the widest SIMD the CPU has, so a pixel gets the same bits as from
-    /// [`PhaseShift::decode`].
+    /// Rayon over rows, each through [`PhaseShift::decode_row_scaled`] (the pipeline's
+    /// kernel) built for the widest SIMD the CPU has, so a pixel gets the same bits as
+    /// from [`PhaseShift::decode`].
     pub fn wrapped_phase(&self, frames: &[&Raster<f32>]) -> Result<WrappedPhase, PhaseError> {
+        let empty = || Raster {
+            width: 0,
+            height: 0,
+            data: Vec::new(),
+        };
+        let mut out = WrappedPhase {
+            phase: empty(),
+            modulation: empty(),
+            background: empty(),
+        };
+        self.wrapped_phase_into(frames, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`PhaseShift::wrapped_phase`] into an existing result, reusing its buffers: a
+    /// scanner decoding capture after capture saves the fresh memory's page faults (the
+    /// kernel clearing three maps per call). `out` is overwritten; on error it is left
+    /// as it was.
+    pub fn wrapped_phase_into(
+        &self,
+        frames: &[&Raster<f32>],
+        out: &mut WrappedPhase,
+    ) -> Result<(), PhaseError> {
         if frames.len() != self.steps {
             return Err(PhaseError::WrongFrameCount {
                 got: frames.len(),
@@ -240,17 +263,19 @@ impl PhaseShift {
             });
         }
         let (width, height) = check_sizes(frames)?;
-        let len = width * height;
-        // Every element is written by the row pass; filled in parallel on huge pages so
-        // the fresh memory's page faults are not one thread's serial cost.
-        let [mut phase, mut modulation, mut background] =
-            [(); 3].map(|_| crate::huge_pages::filled_vec(len, 0.0f32));
+        // Every element is written by the row pass; fresh memory is filled in parallel on
+        // huge pages so its page faults are not one thread's serial cost.
+        for map in [&mut out.phase, &mut out.modulation, &mut out.background] {
+            crate::huge_pages::sized(&mut map.data, width * height, 0.0);
+            (map.width, map.height) = (width, height);
+        }
         let simd = Simd::best();
         use rayon::prelude::*;
-        phase
+        out.phase
+            .data
             .par_chunks_mut(width)
-            .zip(modulation.par_chunks_mut(width))
-            .zip(background.par_chunks_mut(width))
+            .zip(out.modulation.data.par_chunks_mut(width))
+            .zip(out.background.data.par_chunks_mut(width))
             .enumerate()
             .for_each(|(y, ((p, m), b))| {
                 let span = y * width..(y + 1) * width;
@@ -258,16 +283,7 @@ impl PhaseShift {
                 // The pipeline's row kernel, built for the widest SIMD the CPU has.
                 simd_run!(simd, self.decode_row_scaled(&rows, 1.0, p, m, b));
             });
-        let wrap = |data| Raster {
-            width,
-            height,
-            data,
-        };
-        Ok(WrappedPhase {
-            phase: wrap(phase),
-            modulation: wrap(modulation),
-            background: wrap(background),
-        })
+        Ok(())
     }
 }
 
@@ -532,6 +548,11 @@ mod tests {
                     .collect();
                 let refs: Vec<&Raster<f32>> = frames.iter().collect();
                 let out = shift.wrapped_phase(&refs).unwrap();
+                // Into a result of another size: the same maps.
+                let stale = Raster::filled(3, 7, 0.25f32);
+                let mut reused = shift.wrapped_phase(&vec![&stale; steps]).unwrap();
+                shift.wrapped_phase_into(&refs, &mut reused).unwrap();
+                prop_assert_eq!(&reused, &out);
                 for i in 0..len {
                     let (wp, wm, wb) = shift.decode(frames.iter().map(|f| f.data[i]));
                     prop_assert_eq!(

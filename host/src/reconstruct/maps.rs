@@ -158,14 +158,4 @@ impl PixelMaps {
     }
 }
 
-/// Resizes `v` to `len` elements: in place when its allocation is large enough, else a
-/// fresh one on huge pages, filled in parallel (see [`crate::huge_pages::filled_vec`]).
-pub(super) fn sized<T: Clone + Send + Sync>(v: &mut Vec<T>, len: usize, fill: T) {
-    if v.capacity() >= len {
-        v.resize(len, fill);
-    } else {
-        // Free the old allocation first: a scan's buffers are hundreds of MB.
-        *v = Vec::new();
-        *v = crate::huge_pages::filled_vec(len, fill);
-    }
-}
+pub(super) use crate::huge_pages::sized;

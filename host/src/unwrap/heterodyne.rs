@@ -270,16 +270,45 @@ impl Heterodyne {
         wrapped: &[&Raster<f32>],
         mask: Option<&Raster<bool>>,
     ) -> Result<AbsolutePhase, UnwrapError> {
+        let mut out = AbsolutePhase {
+            phase: Raster {
+                width: 0,
+                height: 0,
+                data: Vec::new(),
+            },
+            status: Raster {
+                width: 0,
+                height: 0,
+                data: Vec::new(),
+            },
+            period_px: self.periods_px[0],
+        };
+        self.unwrap_into(wrapped, mask, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Heterodyne::unwrap`] into an existing result, reusing its buffers (no fresh
+    /// memory to fault in). `out` is overwritten; on error it is left as it was.
+    pub fn unwrap_into(
+        &self,
+        wrapped: &[&Raster<f32>],
+        mask: Option<&Raster<bool>>,
+        out: &mut AbsolutePhase,
+    ) -> Result<(), UnwrapError> {
         let (width, height) =
             check_temporal_inputs("heterodyne", self.periods_px.len(), wrapped, mask)?;
-        // Every element is written by the row pass; filled in parallel on huge pages so
-        // the fresh memory's page faults are not one thread's serial cost.
-        let mut phase = crate::huge_pages::filled_vec(width * height, 0.0f32);
-        let mut status = crate::huge_pages::filled_vec(width * height, PixelStatus::Masked);
+        // Every element is written by the row pass; fresh memory is filled in parallel on
+        // huge pages so its page faults are not one thread's serial cost.
+        crate::huge_pages::sized(&mut out.phase.data, width * height, 0.0f32);
+        crate::huge_pages::sized(&mut out.status.data, width * height, PixelStatus::Masked);
+        (out.phase.width, out.phase.height) = (width, height);
+        (out.status.width, out.status.height) = (width, height);
+        out.period_px = self.periods_px[0];
         let simd = Simd::best();
-        phase
+        out.phase
+            .data
             .par_chunks_mut(width.max(1))
-            .zip(status.par_chunks_mut(width.max(1)))
+            .zip(out.status.data.par_chunks_mut(width.max(1)))
             .enumerate()
             .for_each(|(y, (phase, status))| {
                 let span = y * width..(y + 1) * width;
@@ -293,19 +322,7 @@ impl Heterodyne {
                     status_row(phase, status, mask);
                 });
             });
-        Ok(AbsolutePhase {
-            phase: Raster {
-                width,
-                height,
-                data: phase,
-            },
-            status: Raster {
-                width,
-                height,
-                data: status,
-            },
-            period_px: self.periods_px[0],
-        })
+        Ok(())
     }
 }
 
@@ -536,6 +553,15 @@ mod tests {
                 let mask = Raster { width, height, data: masked[..len].iter().map(|m| !m).collect() };
                 let refs: Vec<&Raster<f32>> = maps.iter().collect();
                 let out = h.unwrap(&refs, with_mask.then_some(&mask)).unwrap();
+                // Into a result of another size: the same maps.
+                let stale = Raster::filled(5, 3, 0.5f32);
+                let mut reused = h.unwrap(&vec![&stale; k], None).unwrap();
+                h.unwrap_into(&refs, with_mask.then_some(&mask), &mut reused).unwrap();
+                prop_assert_eq!(&reused.status, &out.status);
+                prop_assert_eq!(
+                    reused.phase.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    out.phase.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                );
                 for i in 0..len {
                     let w: Vec<f32> = maps.iter().map(|m| m.data[i]).collect();
                     let (want, status) = if with_mask && !mask.data[i] {
