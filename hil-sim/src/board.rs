@@ -38,7 +38,7 @@ use crate::faults::{ByteFilter, FaultPlan};
 use crate::sim_hardware::{SimHardware, SimHead};
 
 pub use port::{BoardPort, ChannelPort, PortError};
-pub use serve::{serve, spawn_on_channels, spawn_on_pty, SimBoardHandle};
+pub use serve::{serve, spawn_board_on_pty, spawn_on_channels, spawn_on_pty, SimBoardHandle};
 
 /// How to build a simulated board.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]

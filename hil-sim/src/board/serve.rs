@@ -137,9 +137,15 @@ fn spawn(
 /// thread; [`SimBoardHandle::path`] is what a serial client opens. Fails if
 /// no pty can be opened or the OS refuses a thread.
 pub fn spawn_on_pty(config: SimBoardConfig) -> Result<SimBoardHandle, PtyError> {
+    spawn_board_on_pty(SimBoard::new(config))
+}
+
+/// Serves `board`, built by the caller (e.g. [`SimBoard::with_limits`] for
+/// a board with more trigger lines), on a new pseudo-terminal.
+pub fn spawn_board_on_pty(board: SimBoard) -> Result<SimBoardHandle, PtyError> {
     let pty = Pty::open()?;
     let path = pty.slave_path().to_path_buf();
-    Ok(spawn(SimBoard::new(config), Some(path), pty)?)
+    Ok(spawn(board, Some(path), pty)?)
 }
 
 /// Serves a new simulated board on in-process channels: it hears the host on

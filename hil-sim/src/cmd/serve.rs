@@ -6,8 +6,9 @@ use std::io::Write;
 use std::time::Duration;
 
 use anyhow::Context;
-use hil_sim::board::{spawn_on_pty, SimBoardConfig};
+use hil_sim::board::{spawn_board_on_pty, SimBoard, SimBoardConfig};
 use hil_sim::faults::{FaultPlan, MissedTrigger, Noise, StreamFaults};
+use protocol::BoardLimits;
 
 /// Options of `hil-sim serve`.
 #[derive(clap::Args)]
@@ -36,6 +37,11 @@ pub struct Args {
     /// Fault: random byte drops on both directions, per million bytes.
     #[arg(long, default_value_t = 0)]
     drop_ppm: u32,
+    /// Trigger outputs and feedback inputs the board has, each (two of each
+    /// per head): 4 is the STM32G474 board (2 heads); 6 or 8 simulate a
+    /// board for 3 or 4 heads (issue 21).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(2..=protocol::limits::MAX_OUTPUT_CHANNELS as i64))]
+    lines: u8,
 }
 
 fn parse_missed_trigger(text: &str) -> Result<MissedTrigger, String> {
@@ -91,7 +97,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seed: args.seed,
         faults: args.faults(),
     };
-    let board = spawn_on_pty(config).context("starting the simulated board")?;
+    let limits = BoardLimits {
+        output_channels: args.lines,
+        feedback_channels: args.lines,
+        ..BoardLimits::STM32G474
+    };
+    let board = spawn_board_on_pty(SimBoard::with_limits(config, limits))
+        .context("starting the simulated board")?;
     let path = board
         .path()
         .context("the simulated board has no pty path")?
