@@ -1,7 +1,8 @@
 //! The DLPC350 and DLPC900 drivers (`slscan::rig::dlpc`) against hil-sim's
 //! byte-level controllers: what an upload costs on the wire, that the DMD
 //! then shows exactly the patterns sent, and the refusals (over memory,
-//! exposure under the minimum, device unplugged mid-upload).
+//! exposure under the minimum, device unplugged mid-upload, a plan whose
+//! slots the loaded set cannot follow).
 //!
 //! `cargo test -p slscan --test dlpc_upload -- --nocapture` prints the
 //! upload table.
@@ -179,4 +180,56 @@ fn unplugged_mid_upload_is_a_link_error_and_nothing_is_loaded() {
         assert!(shown(&head).is_empty());
         assert!(head.status().is_err());
     }
+}
+
+#[test]
+fn a_plan_faster_or_longer_than_the_loaded_set_is_refused_before_the_board_starts() {
+    use protocol::ControllerLimitError;
+    use protocol::HeadSet;
+    use slscan::scan::plan::one_pattern_per_scaled_exposure;
+    let c = Controller::Dlpc350;
+    let size = (64, 32);
+    let mut head = simulated_head(c, size, DriverConfig::new(10_000));
+    let standard = one_pattern_per_scaled_exposure(HeadSet::A, 12, 1.0).unwrap();
+    // Nothing loaded yet: no slot may show a pattern.
+    assert!(matches!(
+        head.check_plan(&standard, 0),
+        Err(DlpcError::Plan {
+            source: ControllerLimitError::PatternNotLoaded { loaded: 0, .. },
+            ..
+        })
+    ));
+    head.load(&fringes_8bit(size), &[WHITE; 12]).unwrap();
+    head.check_plan(&standard, 0)
+        .expect("the scan's own plan fits the set it loaded");
+    // A quarter exposure shows each 8-bit pattern 2.5 ms: under both the
+    // set's 10 ms and the DLPC350's 8.333 ms minimum for 8 bits.
+    let quarter = one_pattern_per_scaled_exposure(HeadSet::A, 12, 0.25).unwrap();
+    let err = head.check_plan(&quarter, 0).unwrap_err();
+    println!("plan: {err}: {}", std::error::Error::source(&err).unwrap());
+    assert!(matches!(
+        err,
+        DlpcError::Plan {
+            source: ControllerLimitError::SlotTooShort {
+                exposure: 0,
+                bit_depth: 8,
+                min_us: 10_000,
+                ..
+            },
+            ..
+        }
+    ));
+    // A 13th pattern the controller does not hold.
+    let longer = one_pattern_per_scaled_exposure(HeadSet::A, 13, 1.0).unwrap();
+    assert!(matches!(
+        head.check_plan(&longer, 0),
+        Err(DlpcError::Plan {
+            source: ControllerLimitError::PatternNotLoaded {
+                exposure: 12,
+                pattern_index: 12,
+                loaded: 12
+            },
+            ..
+        })
+    ));
 }

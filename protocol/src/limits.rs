@@ -275,6 +275,31 @@ pub enum ControllerLimitError {
         /// Bytes the store holds.
         max_bytes: u32,
     },
+    /// A plan slot shorter than the controller shows a pattern of the
+    /// loaded set (its LUT exposure, at least the minimum for its depth).
+    #[error("exposure {exposure}: pattern {pattern_index} is shown {display_ns} ns, the controller needs {min_us} us for its {bit_depth}-bit patterns")]
+    SlotTooShort {
+        /// Exposure index in the plan's cycle.
+        exposure: u32,
+        /// The slot's pattern.
+        pattern_index: u16,
+        /// The slot's display time.
+        display_ns: u32,
+        /// Bit depth of the loaded set.
+        bit_depth: u8,
+        /// The least the controller shows one pattern for.
+        min_us: u32,
+    },
+    /// A plan slot steps to a pattern the loaded set does not have.
+    #[error("exposure {exposure}: pattern {pattern_index} is not loaded (the controller holds {loaded})")]
+    PatternNotLoaded {
+        /// Exposure index in the plan's cycle.
+        exposure: u32,
+        /// The slot's pattern.
+        pattern_index: u16,
+        /// Patterns in the controller's LUT.
+        loaded: u32,
+    },
     /// Patterns of another size than the DMD.
     #[error("pattern is {got:?}, the DMD is {dmd:?} (width, height)")]
     DmdSize {

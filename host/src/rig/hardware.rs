@@ -41,6 +41,7 @@ impl<S: FrameSource, P: Projector> HardwareRig<S, P> {
 
 impl<S: FrameSource, P: Projector> Board for HardwareRig<S, P> {
     fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError> {
+        self.projector.check_plan(plan)?;
         self.cameras.arm(&frames_per_head(plan, self.heads))?;
         self.board.run_plan(plan)
     }
@@ -53,6 +54,10 @@ impl<S: FrameSource, P: Projector> Projector for HardwareRig<S, P> {
 
     fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError> {
         self.projector.load_sequence(head, patterns)
+    }
+
+    fn check_plan(&self, plan: &ScanPlan) -> Result<(), RigError> {
+        self.projector.check_plan(plan)
     }
 
     fn load_coloured_sequence(

@@ -242,6 +242,13 @@ pub trait Projector {
     /// Loads the patterns (values in [0, 1]) the triggers of head `head`
     /// step through, in trigger order, lit white.
     fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError>;
+    /// Checks, before the board starts `plan`, that every head's projector
+    /// can show what the plan's slots ask of the loaded sets (a DMD
+    /// controller's exposure at the set's bit depth, its LUT); projectors
+    /// without such limits accept every plan.
+    fn check_plan(&self, _plan: &ScanPlan) -> Result<(), RigError> {
+        Ok(())
+    }
     /// Loads patterns each lit by its own LEDs (`leds[i]` lights
     /// `patterns[i]`). A projector without LED control takes white ones only.
     fn load_coloured_sequence(

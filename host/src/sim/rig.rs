@@ -196,6 +196,7 @@ fn check_sequencing(
 
 impl Board for SimRig {
     fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError> {
+        self.check_plan(plan)?;
         self.slots_per_frame = slots_per_frame(plan, self.slots_per_frame.len());
         self.board_link.run_plan(plan)
     }
@@ -210,6 +211,17 @@ impl Projector for SimRig {
 
     fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError> {
         self.load_coloured_sequence(head, patterns, &vec![WHITE; patterns.len()])
+    }
+
+    /// Through DLPC drivers, what the simulated controllers hold bounds the
+    /// plan as on hardware; straight to the DMDs, every plan goes.
+    fn check_plan(&self, plan: &ScanPlan) -> Result<(), RigError> {
+        for (head, driver) in self.drivers.iter().enumerate() {
+            driver
+                .check_plan(plan, head)
+                .map_err(|source| RigError::Controller { head, source })?;
+        }
+        Ok(())
     }
 
     fn load_coloured_sequence(

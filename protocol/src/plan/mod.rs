@@ -19,6 +19,7 @@
 //! chunks: a [`PlanHeader`] then one [`Exposure`] (with its slots inline) per
 //! request, because a whole plan exceeds [`crate::limits::MAX_FRAME_BYTES`].
 
+pub mod controller;
 pub mod examples;
 pub mod random;
 mod validate;

@@ -27,7 +27,8 @@ pub mod hid;
 pub mod packing;
 pub mod report;
 
-use protocol::{ControllerLimitError, ControllerLimits, ProjectorModel};
+use protocol::plan::controller::LoadedSet;
+use protocol::{ControllerLimitError, ControllerLimits, ProjectorModel, ScanPlan};
 
 use self::report::{parse_reply, Message, MessageTooLong, ReplyError, REPLY_LEN, REPORT_LEN};
 use super::{check_sequence, Led, Projector, RigError, WHITE};
@@ -102,6 +103,15 @@ pub enum DlpcError {
         /// Controller name.
         controller: &'static str,
         /// Which limit.
+        source: ControllerLimitError,
+    },
+    /// The plan asks of the loaded set what the controller cannot show;
+    /// the board was not started.
+    #[error("{controller}: plan refused before the board starts")]
+    Plan {
+        /// Controller name.
+        controller: &'static str,
+        /// Which slot, and why.
         source: ControllerLimitError,
     },
     /// An LED setting other than each LED fully on or off (the LUT selects
@@ -271,6 +281,7 @@ pub struct DlpcHead<L: HidLink> {
     config: DriverConfig,
     seq: u8,
     loaded: Option<UploadStats>,
+    loaded_set: Option<LoadedSet>,
 }
 
 impl<L: HidLink> DlpcHead<L> {
@@ -295,6 +306,7 @@ impl<L: HidLink> DlpcHead<L> {
             config,
             seq: 0,
             loaded: None,
+            loaded_set: None,
         }
     }
 
@@ -519,6 +531,7 @@ impl<L: HidLink> DlpcHead<L> {
         messages.push(Message::write(dlpc350::LUT_VALID, &[0]));
         // From the first byte sent, the controller's old set is gone.
         self.loaded = None;
+        self.loaded_set = None;
         let total = messages.len() + 2;
         for (i, m) in messages.iter().enumerate() {
             self.transact(m, &mut stats, (i + 1, total))?;
@@ -553,7 +566,27 @@ impl<L: HidLink> DlpcHead<L> {
             (total, total),
         )?;
         self.loaded = Some(stats);
+        self.loaded_set = Some(LoadedSet {
+            patterns: patterns.len() as u32,
+            bit_depth,
+            exposure_us: self.config.exposure_us,
+        });
         Ok(stats)
+    }
+
+    /// Checks head `head`'s slots of `plan` against the set this controller
+    /// holds (none loaded: no slot may show a pattern).
+    pub fn check_plan(&self, plan: &ScanPlan, head: usize) -> Result<(), DlpcError> {
+        let set = self.loaded_set.unwrap_or(LoadedSet {
+            patterns: 0,
+            bit_depth: 1,
+            exposure_us: 0,
+        });
+        plan.check_controller(head, &self.limits, &set)
+            .map_err(|source| DlpcError::Plan {
+                controller: self.controller.name(),
+                source,
+            })
     }
 }
 
@@ -593,6 +626,14 @@ impl<L: HidLink> Projector for DlpcProjector<L> {
 
     fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError> {
         self.load_coloured_sequence(head, patterns, &vec![WHITE; patterns.len()])
+    }
+
+    fn check_plan(&self, plan: &ScanPlan) -> Result<(), RigError> {
+        for (head, h) in self.heads.iter().enumerate() {
+            h.check_plan(plan, head)
+                .map_err(|source| RigError::Controller { head, source })?;
+        }
+        Ok(())
     }
 
     fn load_coloured_sequence(
