@@ -17,6 +17,17 @@
 //!
 //! A last table says where the time goes: each side's phase and unwrap stages, and the
 //! memory floor (one parallel pass reading the 12 frames, and one writing a map).
+//!
+//! On the shared 2-core development machine (AMD EPYC, AVX2 build; loaded by other
+//! builds, so the 2-thread rows gain little), numpy 2.4.6 took ~210-240 ms (phase
+//! ~105-140, unwrap ~90-105). slscan, 1 thread: staged pipeline ~63 ms (3.4-3.7x), the
+//! map APIs ~60-63 ms (3.4-3.8x; ~390 ms, 0.5x, before they ran the row kernels), into
+//! reused outputs ~52 ms (4.5x). Phase ~30-38 ms of which reading the 302 MB of frames
+//! is ~10.5 ms and fresh outputs ~8 ms, the rest atan2 / sqrt; unwrap ~20-25 ms,
+//! compute (three beat differences, a division and two roundings per pixel). Accuracy:
+//! numpy and the map APIs keep the same 99.93 % with RMS 0.0263 rad (largest 0.182, no
+//! miscounted order); the pipeline also refuses pixels whose modulation is too low to
+//! count orders reliably (98.51 % kept, RMS 0.0260).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
