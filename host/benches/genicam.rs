@@ -17,39 +17,18 @@
 //!
 //! `cargo bench -p slscan --features genicam --bench genicam`
 
-use std::process::{Child, Command, Stdio};
 use std::thread::sleep;
 use std::time::{Duration, Instant};
 
 use aravis::prelude::*;
-use slscan::rig::genicam::aravis_camera::{list_cameras, GenicamCamera};
+use slscan::rig::genicam::aravis_camera::GenicamCamera;
 use slscan::rig::genicam::pixels::decode_frame;
 use slscan::rig::genicam::{GenicamSettings, PixelFormat};
 
-struct Fake(Child);
+#[path = "../tests/support/fake_gv_camera.rs"]
+mod fake_gv_camera;
 
-impl Drop for Fake {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn start_fake(serial: &str) -> (Fake, String) {
-    let child = Command::new("arv-fake-gv-camera-0.8")
-        .args(["-i", "127.0.0.1", "-s", serial])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("arv-fake-gv-camera-0.8 (Debian: apt install aravis-tools)");
-    let id = format!("Aravis-Fake-{serial}");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while !list_cameras().iter().any(|c| c.id == id) {
-        assert!(Instant::now() < deadline, "fake camera not discovered");
-        sleep(Duration::from_millis(100));
-    }
-    (Fake(child), id)
-}
+use fake_gv_camera::FakeGvCamera;
 
 /// Frames/s and median trigger-to-frame latency (ms) of `n` triggers.
 fn triggered(id: &str, format: PixelFormat, n: usize) -> (f64, f64) {
@@ -150,9 +129,9 @@ fn main() {
         (PixelFormat::Mono8, "BENCH8"),
         (PixelFormat::Mono16, "BENCH16"),
     ] {
-        let (_fake, id) = start_fake(serial);
-        let (rate, latency) = triggered(&id, format, 40);
-        let (whole, broken) = free_running(&id, format, 3.0);
+        let fake = FakeGvCamera::start(serial, 0);
+        let (rate, latency) = triggered(&fake.id, format, 40);
+        let (whole, broken) = free_running(&fake.id, format, 3.0);
         println!(
             "| {} | {rate:.1} frames/s | {latency:.1} ms | {whole:.0} frames/s | {broken:.0} frames/s | {:.0} frames/s |",
             format.name(),

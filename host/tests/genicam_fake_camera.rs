@@ -8,57 +8,21 @@
 //!
 //! One fake camera at a time: they all bind the GVCP port 3956.
 
-use std::process::{Child, Command, Stdio};
 use std::sync::Mutex;
 use std::thread::sleep;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use slscan::rig::genicam::aravis_camera::{list_cameras, GenicamCamera};
+use slscan::rig::genicam::aravis_camera::GenicamCamera;
 use slscan::rig::genicam::{
     ArrivalStatus, GenicamError, GenicamSettings, LedgerError, PixelFormat,
 };
 
+#[path = "support/fake_gv_camera.rs"]
+mod fake_gv_camera;
+
+use fake_gv_camera::FakeGvCamera;
+
 static ONE_CAMERA_AT_A_TIME: Mutex<()> = Mutex::new(());
-
-/// `arv-fake-gv-camera-0.8` on 127.0.0.1, killed on drop.
-struct FakeGvCamera {
-    child: Child,
-    id: String,
-}
-
-impl FakeGvCamera {
-    /// Serves camera `serial`, losing `lost_per_thousand` GVSP packets.
-    fn start(serial: &str, lost_per_thousand: u32) -> FakeGvCamera {
-        let child = Command::new("arv-fake-gv-camera-0.8")
-            .args(["-i", "127.0.0.1", "-s", serial])
-            .args(["-r", &lost_per_thousand.to_string()])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("arv-fake-gv-camera-0.8 runs (Debian: apt install aravis-tools)");
-        let camera = FakeGvCamera {
-            child,
-            id: format!("Aravis-Fake-{serial}"),
-        };
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while !list_cameras().iter().any(|c| c.id == camera.id) {
-            assert!(
-                Instant::now() < deadline,
-                "fake camera {} not discovered",
-                camera.id
-            );
-            sleep(Duration::from_millis(100));
-        }
-        camera
-    }
-}
-
-impl Drop for FakeGvCamera {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
 
 fn settings(format: PixelFormat, trigger: &str) -> GenicamSettings {
     GenicamSettings {
