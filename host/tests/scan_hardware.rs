@@ -642,7 +642,7 @@ fn slscan_scan_names_the_missing_hardware_options() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
-        stderr.contains("--frames-from, --calibration") && stderr.contains("--sim"),
+        stderr.contains("--frames-from or --camera, --calibration") && stderr.contains("--sim"),
         "{stderr}"
     );
 }

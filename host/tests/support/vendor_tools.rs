@@ -117,8 +117,10 @@ fn play_vendor_tools(board: &SimBoardHandle, folders: &Folders, fault: Fault, st
                     .filter_map(|e| e.end_ns.map(|end| (e.start_ns, end)))
                     .filter(|&(start, _)| last_start_ns[cam].is_none_or(|last| start > last))
                     .collect();
+                // The board pads its heads to MAX_HEADS; this rig has two.
                 let displayed: Vec<Vec<Displayed>> = heads
                     .iter()
+                    .take(HEADS.len())
                     .map(|h| h.projector.displayed().to_vec())
                     .collect();
                 (exposures, displayed)
