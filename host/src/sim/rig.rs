@@ -216,12 +216,7 @@ impl Projector for SimRig {
     /// Through DLPC drivers, what the simulated controllers hold bounds the
     /// plan as on hardware; straight to the DMDs, every plan goes.
     fn check_plan(&self, plan: &ScanPlan) -> Result<(), RigError> {
-        for (head, driver) in self.drivers.iter().enumerate() {
-            driver
-                .check_plan(plan, head)
-                .map_err(|source| RigError::Controller { head, source })?;
-        }
-        Ok(())
+        crate::rig::dlpc::check_plan_on_heads(&self.drivers, plan)
     }
 
     fn load_coloured_sequence(

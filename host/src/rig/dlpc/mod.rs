@@ -590,6 +590,19 @@ impl<L: HidLink> DlpcHead<L> {
     }
 }
 
+/// Checks `plan` against every head's controller, head `h` = `heads[h]`
+/// (the hardware projector and the simulated rig's drivers alike).
+pub fn check_plan_on_heads<L: HidLink>(
+    heads: &[DlpcHead<L>],
+    plan: &ScanPlan,
+) -> Result<(), RigError> {
+    for (head, h) in heads.iter().enumerate() {
+        h.check_plan(plan, head)
+            .map_err(|source| RigError::Controller { head, source })?;
+    }
+    Ok(())
+}
+
 /// DMD projectors driven through their controllers, one [`DlpcHead`] per
 /// head.
 pub struct DlpcProjector<L: HidLink> {
@@ -629,11 +642,7 @@ impl<L: HidLink> Projector for DlpcProjector<L> {
     }
 
     fn check_plan(&self, plan: &ScanPlan) -> Result<(), RigError> {
-        for (head, h) in self.heads.iter().enumerate() {
-            h.check_plan(plan, head)
-                .map_err(|source| RigError::Controller { head, source })?;
-        }
-        Ok(())
+        check_plan_on_heads(&self.heads, plan)
     }
 
     fn load_coloured_sequence(
