@@ -6,9 +6,9 @@
 //! `(x + y + block id) mod 255` at exposure 10 ms and gain 0, so every
 //! decoded frame is checked pixel for pixel against its own block id.
 //!
-//! One fake camera at a time: they all bind the GVCP port 3956.
+//! One fake camera at a time (the runner waits for the one before): they all
+//! bind the GVCP port 3956.
 
-use std::sync::Mutex;
 use std::thread::sleep;
 use std::time::Duration;
 
@@ -21,8 +21,6 @@ use slscan::rig::genicam::{
 mod fake_gv_camera;
 
 use fake_gv_camera::FakeGvCamera;
-
-static ONE_CAMERA_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 fn settings(format: PixelFormat, trigger: &str) -> GenicamSettings {
     GenicamSettings {
@@ -63,9 +61,6 @@ fn trigger(camera: &mut GenicamCamera, n: usize) {
 
 #[test]
 fn triggered_mono8_frames_arrive_whole_in_order_with_time_stamps() {
-    let _one = ONE_CAMERA_AT_A_TIME
-        .lock()
-        .unwrap_or_else(|e| e.into_inner());
     let fake = FakeGvCamera::start("SLT8", 0);
     let mut camera = open_settled(&fake.id, &settings(PixelFormat::Mono8, "Software"));
     assert_eq!(camera.image_size_px(), (640, 480));
@@ -112,9 +107,6 @@ fn triggered_mono8_frames_arrive_whole_in_order_with_time_stamps() {
 
 #[test]
 fn triggered_mono16_frames_arrive_with_the_mono16_payload() {
-    let _one = ONE_CAMERA_AT_A_TIME
-        .lock()
-        .unwrap_or_else(|e| e.into_inner());
     let fake = FakeGvCamera::start("SLT16", 0);
     let mut camera = open_settled(&fake.id, &settings(PixelFormat::Mono16, "Software"));
     assert_eq!(camera.pixel_format(), PixelFormat::Mono16);
@@ -128,9 +120,6 @@ fn triggered_mono16_frames_arrive_with_the_mono16_payload() {
 
 #[test]
 fn a_camera_that_never_triggers_is_a_typed_time_out() {
-    let _one = ONE_CAMERA_AT_A_TIME
-        .lock()
-        .unwrap_or_else(|e| e.into_inner());
     let fake = FakeGvCamera::start("SLTL0", 0);
     // Line0 is never driven on the fake camera: the board's line is cut.
     let mut camera = GenicamCamera::open(&fake.id, &settings(PixelFormat::Mono8, "Line0")).unwrap();
@@ -157,9 +146,6 @@ fn a_camera_that_never_triggers_is_a_typed_time_out() {
 /// 10 frames ends either whole (every loss recovered by resends, counted)
 /// or in a typed error naming the frame: never a short scan.
 fn lost_packets(serial: &str, lost: u32) {
-    let _one = ONE_CAMERA_AT_A_TIME
-        .lock()
-        .unwrap_or_else(|e| e.into_inner());
     let fake = FakeGvCamera::start(serial, lost);
     let mut camera = open_settled(&fake.id, &settings(PixelFormat::Mono8, "Software"));
     let n = 10;
@@ -211,9 +197,6 @@ fn five_percent_lost_packets_are_resent_or_named() {
 
 #[test]
 fn an_unknown_id_and_an_unoffered_format_are_refused_by_name() {
-    let _one = ONE_CAMERA_AT_A_TIME
-        .lock()
-        .unwrap_or_else(|e| e.into_inner());
     let fake = FakeGvCamera::start("SLTERR", 0);
     match GenicamCamera::open("No-Such-Camera", &GenicamSettings::default()) {
         Err(GenicamError::NotFound { id, found }) => {

@@ -3,21 +3,29 @@
 //! GVCP port 3956: one at a time.
 
 use std::process::{Child, Command, Stdio};
+use std::sync::{Mutex, MutexGuard};
 use std::thread::sleep;
 use std::time::{Duration, Instant};
 
 use slscan::rig::genicam::aravis_camera::list_cameras;
 
+/// Held by the running fake camera: one at a time in a process.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
 /// A running fake GigE Vision camera and the id Aravis finds it by.
 pub struct FakeGvCamera {
     child: Child,
     pub id: String,
+    // Dropped after the child is killed (Drop runs before the fields).
+    _port: MutexGuard<'static, ()>,
 }
 
 impl FakeGvCamera {
     /// Serves camera `serial`, losing `lost_per_thousand` GVSP packets;
-    /// returns once Aravis discovers it.
+    /// returns once Aravis discovers it. Waits for the fake camera before
+    /// it in this process to be dropped (they share the GVCP port).
     pub fn start(serial: &str, lost_per_thousand: u32) -> FakeGvCamera {
+        let port = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         let child = Command::new("arv-fake-gv-camera-0.8")
             .args(["-i", "127.0.0.1", "-s", serial])
             .args(["-r", &lost_per_thousand.to_string()])
@@ -28,6 +36,7 @@ impl FakeGvCamera {
         let camera = FakeGvCamera {
             child,
             id: format!("Aravis-Fake-{serial}"),
+            _port: port,
         };
         let deadline = Instant::now() + Duration::from_secs(10);
         while !list_cameras().iter().any(|c| c.id == camera.id) {
