@@ -14,6 +14,8 @@
 //! knows the simulator (hil-sim): the simulated rig, the twin's truth and calibration views;
 //! `--no-default-features` builds the hardware path and the CLI without it. [`synth`] is a formula-based renderer for tests and benches (not the
 //! digital twin); [`fit`] fits planes and spheres for accuracy reports.
+//! [`underwater`] restores fringes seen through water (forward scatter, backscatter veil)
+//! before `phase` (issue 18).
 #![warn(missing_docs)]
 
 pub mod adaptive;
@@ -41,4 +43,5 @@ pub mod simd;
 pub mod stereo;
 pub mod synth;
 pub mod triangulation;
+pub mod underwater;
 pub mod unwrap;

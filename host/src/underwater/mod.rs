@@ -1,0 +1,26 @@
+//! Underwater scanning (issue 18, seed 002): fringes seen through water are
+//! attenuated, blurred by forward scatter and washed out by a backscatter
+//! veil. This module restores them before the unchanged phase decoding.
+//!
+//! Seed 002's degradation operator is `D(I) = I * h_g + n_g` (a Gaussian
+//! forward-scatter PSF and backscatter noise); the twin's water adds a
+//! smooth additive veil and a smooth gain (Beer-Lambert attenuation along
+//! the path). The classical restorer inverts what is linear in that model:
+//!
+//! ```text
+//! frame (NaN / saturated pixels flagged, filled from their block for the transform)
+//!   -> noise sigma from the frame (robust high-pass residual)
+//!   -> Wiener deconvolution with the Gaussian PSF, mirror-padded FFT,
+//!      signal spectrum estimated from the frame's own smoothed periodogram
+//!   -> veil: per-block low percentile of the restored frame, bilinear, subtracted
+//!   -> restored frame, flagged pixels NaN
+//! ```
+//!
+//! What is not here yet: the learned restorer (seed 002's conditional DDPM),
+//! refraction at the port (a geometric error no restoration removes; the
+//! triangulation's concern), and a per-pixel attenuation gain (it needs the
+//! depth the scan has not measured yet).
+
+pub mod restore;
+
+pub use restore::{restore_classical, ClassicalRestorer, RestoreError, RestoreParams, Restored};
