@@ -22,8 +22,9 @@
 //!
 //! The set-up and the per-pixel geometry live here; the whole-row vectorised passes of
 //! the pipeline in `rows.rs`, the single-pixel reference paths they are tested against
-//! in `pixel.rs`.
+//! in `pixel.rs`. [`flat_port`] triangulates through the flat ports of underwater housings.
 
+pub mod flat_port;
 mod pixel;
 mod rows;
 #[cfg(test)]
