@@ -40,6 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             client: scan.client,
             sensor: sim_sensor(),
             noise_seed: seed,
+            board_limits: protocol::BoardLimits::STM32G474,
         },
     )?;
     let mut captured = capture::capture(&mut sim, scan, &calibration, &mut |_| {})?;

@@ -413,7 +413,7 @@ fn cli_sim_then_images_round_trip() {
         &slscan::sim::twin::Detail::default(),
     )
     .second_head();
-    let h2h = sim_rig.head_to_head.expect("two heads have head_to_head");
+    let h2h = sim_rig.head_to_head().expect("two heads have head_to_head");
     let dt_mm = (h2h.translation_m - truth.translation_m).norm() * 1e3;
     println!("head-to-head from one shared twin view, 6-view heads: {dt_mm:.3} mm off");
     // Measured 0.81 mm with area-integrating pixels (4x4 rays).

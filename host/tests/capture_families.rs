@@ -467,7 +467,7 @@ fn reconstruct_stereo_decodes_both_cameras_of_a_stereo_head() {
     let dir = tmp("stereo");
     let stereo_rig = RigCalibration {
         heads: vec![],
-        head_to_head: None,
+        head_poses: vec![],
         stereo_heads: vec![head],
     };
     write_rig(&dir.join("rig.json"), &stereo_rig).unwrap();

@@ -140,7 +140,7 @@ fn fuse_writes_one_cloud_from_binary_files() {
     slscan::io::ply::write_ply(&dir.join("b.ply"), &to_out(&b)).unwrap();
     let rig = slscan::calibration::RigCalibration {
         heads: vec![head("A"), head("B")],
-        head_to_head: Some(slscan::calibration::Pose::from_isometry(&guess.inverse())),
+        head_poses: vec![slscan::calibration::Pose::from_isometry(&guess.inverse())],
         stereo_heads: vec![],
     };
     slscan::calibration::write_rig(&dir.join("rig.json"), &rig).unwrap();

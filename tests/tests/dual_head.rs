@@ -270,6 +270,7 @@ fn head_a_with_table(
             client: config.client,
             sensor,
             noise_seed: 5,
+            board_limits: protocol::BoardLimits::STM32G474,
         },
     )
     .unwrap();

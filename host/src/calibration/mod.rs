@@ -5,10 +5,10 @@
 //! rig.json --(rig_file::read)--> RigCalibration --> triangulation / reconstruct
 //! ```
 //!
-//! A rig has one or two *heads*; each head is a camera and a projector whose poses are
+//! A rig has one to four *heads*; each head is a camera and a projector whose poses are
 //! given in the head's own world frame (usually the camera frame, so the camera pose is
-//! the identity). With two heads, [`RigCalibration::head_to_head`] maps head 0's frame
-//! into head 1's. A rig may also hold stereo heads (two cameras and an uncalibrated
+//! the identity). [`RigCalibration::head_poses`] maps head 0's frame into each other
+//! head's ([`RigCalibration::head_to_head`] is head 1's, for a two-head rig). A rig may also hold stereo heads (two cameras and an uncalibrated
 //! projector, [`StereoHead`]), and then needs no projector-camera head at all.
 //! [`opencv`] reads and writes OpenCV's calibration files.
 
@@ -72,10 +72,12 @@ pub struct StereoHead {
 /// A calibrated rig of one or two projector-camera heads, and any stereo heads.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RigCalibration {
-    /// One or two projector-camera heads (none when there is a stereo head).
+    /// One to `protocol::limits::MAX_HEADS` projector-camera heads (none
+    /// when there is a stereo head).
     pub heads: Vec<Head>,
-    /// With two heads: head 0's world frame -> head 1's world frame. `None` with one head.
-    pub head_to_head: Option<Pose>,
+    /// Head 0's world frame -> head i's world frame, for i = 1..K (empty
+    /// with one head).
+    pub head_poses: Vec<Pose>,
     /// Stereo heads (two cameras each), each in its own world frame.
     pub stereo_heads: Vec<StereoHead>,
 }
@@ -97,8 +99,27 @@ impl RigCalibration {
     pub fn single(head: Head) -> Self {
         Self {
             heads: vec![head],
-            head_to_head: None,
+            head_poses: Vec::new(),
             stereo_heads: vec![],
+        }
+    }
+
+    /// A two-head rig's head 0 -> head 1 pose (`None` with any other
+    /// number of heads).
+    pub fn head_to_head(&self) -> Option<Pose> {
+        match self.head_poses[..] {
+            [a_to_b] if self.heads.len() == 2 => Some(a_to_b),
+            _ => None,
+        }
+    }
+
+    /// Head 0's world frame -> head `h`'s (the identity for head 0; `None`
+    /// past the last head or without its pose).
+    pub fn pose_from_first(&self, h: usize) -> Option<Pose> {
+        match h {
+            0 if !self.heads.is_empty() => Some(Pose::identity()),
+            _ if h < self.heads.len() => self.head_poses.get(h - 1).copied(),
+            _ => None,
         }
     }
 

@@ -18,8 +18,11 @@
 //! ```
 //!
 //! `stereo_heads` is optional (absent in older files, and not written when empty); a rig
-//! has 1 or 2 projector heads, or none when it has a stereo head. Names are unique across
-//! both lists.
+//! has 1 to 4 projector heads (`protocol::limits::MAX_HEADS`), or none when it has a
+//! stereo head. Names are unique across both lists. Each head after the first has its
+//! pose from head 0's world frame: a two-head rig writes it as `head_to_head` (as every
+//! earlier file does), a rig of three or four as `head_poses` (one per head after the
+//! first, in order); a two-head file may give either, never both.
 //!
 //! `rotation` is row-major and, with `translation_m`, maps the head's world frame into the
 //! device (`x_d = R x_w + t`), as OpenCV's `R`/`T`. Reading parses the text (serde names a
@@ -105,20 +108,27 @@ pub enum RigFileError {
         /// `max|R^T R - I| + |det R - 1|`.
         defect: f64,
     },
-    /// A rig needs one or two heads (or none, with a stereo head).
-    #[error("a rig has 1 or 2 projector heads (or none with a stereo head), this one has {count}")]
+    /// A rig needs one to four heads (or none, with a stereo head).
+    #[error(
+        "a rig has 1 to {} projector heads (or none with a stereo head), this one has {count}",
+        protocol::limits::MAX_HEADS
+    )]
     HeadCount {
         /// Heads found.
         count: usize,
     },
-    /// Two heads need `head_to_head`; one head must not have it.
-    #[error("{heads} head(s) but head_to_head is {}", if *.present { "present" } else { "missing" })]
-    HeadToHead {
+    /// Every head after the first needs its pose from head 0 (`head_to_head`
+    /// or `head_poses`), and only those.
+    #[error("{heads} head(s) need {} head pose(s) from head 0 (head_to_head for two heads, head_poses for more), the file gives {poses}", heads.saturating_sub(1))]
+    HeadPoses {
         /// Heads found.
         heads: usize,
-        /// Whether `head_to_head` was given.
-        present: bool,
+        /// Poses given.
+        poses: usize,
     },
+    /// A file gives both `head_to_head` and `head_poses`.
+    #[error("give a two-head rig's pose as head_to_head or as head_poses, not both")]
+    BothHeadPoseFields,
     /// Two heads (projector or stereo) share a name.
     #[error("two heads are both named {name:?}")]
     DuplicateHeadName {
@@ -143,6 +153,8 @@ struct RigDoc {
     heads: Vec<HeadDoc>,
     #[serde(default)]
     head_to_head: Option<PoseDoc>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    head_poses: Vec<PoseDoc>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     stereo_heads: Vec<StereoHeadDoc>,
 }
@@ -232,11 +244,17 @@ pub fn parse_rig(text: &str) -> Result<RigCalibration, RigFileError> {
             version: doc.version,
         });
     }
+    if doc.head_to_head.is_some() && !doc.head_poses.is_empty() {
+        return Err(RigFileError::BothHeadPoseFields);
+    }
     let rig = RigCalibration {
         heads: doc.heads.into_iter().map(head_from_doc).collect(),
-        head_to_head: doc
+        head_poses: doc
             .head_to_head
-            .map(|p| pose_from_doc(&p.rotation, &p.translation_m)),
+            .iter()
+            .chain(&doc.head_poses)
+            .map(|p| pose_from_doc(&p.rotation, &p.translation_m))
+            .collect(),
         stereo_heads: doc
             .stereo_heads
             .iter()
@@ -258,13 +276,12 @@ pub fn to_json(rig: &RigCalibration) -> Result<String, RigFileError> {
         format: FORMAT.to_owned(),
         version: VERSION,
         heads: rig.heads.iter().map(head_to_doc).collect(),
-        head_to_head: rig.head_to_head.as_ref().map(|p| {
-            let (rotation, translation_m) = pose_to_doc(p);
-            PoseDoc {
-                rotation,
-                translation_m,
-            }
-        }),
+        // Two heads keep the field every earlier file has.
+        head_to_head: rig.head_to_head().as_ref().map(pose_doc),
+        head_poses: match rig.heads.len() {
+            2 => Vec::new(),
+            _ => rig.head_poses.iter().map(pose_doc).collect(),
+        },
         stereo_heads: rig
             .stereo_heads
             .iter()
@@ -292,19 +309,19 @@ pub fn write_rig(path: &Path, rig: &RigCalibration) -> Result<(), RigFileError> 
     })
 }
 
-/// Checks a rig: 1-2 heads (or 0 with a stereo head), unique names, finite numbers,
-/// positive focal lengths, sane sizes, proper rotations, `head_to_head` iff two heads,
-/// non-negative errors.
+/// Checks a rig: 1-4 heads (or 0 with a stereo head), unique names, finite numbers,
+/// positive focal lengths, sane sizes, proper rotations, one pose from head 0 per
+/// further head, non-negative errors.
 pub fn validate(rig: &RigCalibration) -> Result<(), RigFileError> {
     let count = rig.heads.len();
     let min = if rig.stereo_heads.is_empty() { 1 } else { 0 };
-    if !(min..=2).contains(&count) {
+    if !(min..=protocol::limits::MAX_HEADS).contains(&count) {
         return Err(RigFileError::HeadCount { count });
     }
-    if (count == 2) != rig.head_to_head.is_some() {
-        return Err(RigFileError::HeadToHead {
+    if rig.head_poses.len() != count.saturating_sub(1) {
+        return Err(RigFileError::HeadPoses {
             heads: count,
-            present: rig.head_to_head.is_some(),
+            poses: rig.head_poses.len(),
         });
     }
     let mut names = std::collections::HashSet::new();
@@ -329,8 +346,12 @@ pub fn validate(rig: &RigCalibration) -> Result<(), RigFileError> {
         validate_device(&format!("stereo_heads[{i}].left"), &head.left)?;
         validate_device(&format!("stereo_heads[{i}].right"), &head.right)?;
     }
-    if let Some(p) = &rig.head_to_head {
-        validate_pose("head_to_head", p)?;
+    for (i, p) in rig.head_poses.iter().enumerate() {
+        let field = match count {
+            2 => "head_to_head".to_owned(),
+            _ => format!("head_poses[{i}]"),
+        };
+        validate_pose(&field, p)?;
     }
     Ok(())
 }
@@ -413,6 +434,14 @@ fn pose_from_doc(r: &[[f64; 3]; 3], t: &[f64; 3]) -> Pose {
     Pose {
         rotation: Matrix3::from_fn(|i, j| r[i][j]),
         translation_m: Vector3::from(*t),
+    }
+}
+
+fn pose_doc(p: &Pose) -> PoseDoc {
+    let (rotation, translation_m) = pose_to_doc(p);
+    PoseDoc {
+        rotation,
+        translation_m,
     }
 }
 
@@ -527,12 +556,79 @@ mod tests {
     fn two_heads() -> RigCalibration {
         RigCalibration {
             heads: vec![head("A"), head("B")],
-            head_to_head: Some(Pose {
+            head_poses: vec![Pose {
                 rotation: *Rotation3::from_euler_angles(0.0, 1.2, 0.0).matrix(),
                 translation_m: Vector3::new(0.5, 0.0, 0.2),
-            }),
+            }],
             stereo_heads: vec![],
         }
+    }
+
+    fn four_heads() -> RigCalibration {
+        let pose = |k: f64| Pose {
+            rotation: *Rotation3::from_euler_angles(0.0, k * std::f64::consts::FRAC_PI_2, 0.0)
+                .matrix(),
+            translation_m: Vector3::new(0.5 * k.sin(), 0.0, 0.5 - 0.5 * k.cos()),
+        };
+        RigCalibration {
+            heads: ["A", "B", "C", "D"].map(head).to_vec(),
+            head_poses: vec![pose(1.0), pose(2.0), pose(3.0)],
+            stereo_heads: vec![],
+        }
+    }
+
+    #[test]
+    fn rigs_of_three_and_four_heads_round_trip_with_head_poses() {
+        let four = four_heads();
+        let mut three = four.clone();
+        three.heads.pop();
+        three.head_poses.pop();
+        for rig in [three, four] {
+            let text = to_json(&rig).expect("valid");
+            assert!(text.contains("\"head_poses\""), "{text}");
+            let back = parse_rig(&text).expect("parses");
+            assert_eq!(back, rig);
+            assert_eq!(back.pose_from_first(0), Some(Pose::identity()));
+            assert_eq!(back.pose_from_first(2), Some(rig.head_poses[1]));
+            assert_eq!(back.pose_from_first(rig.heads.len()), None);
+            assert_eq!(back.head_to_head(), None);
+        }
+    }
+
+    #[test]
+    fn two_heads_write_head_to_head_and_read_either_field_but_not_both() {
+        let text = to_json(&two_heads()).unwrap();
+        assert!(text.contains("\"head_to_head\": {"), "{text}");
+        assert!(!text.contains("head_poses"), "{text}");
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let pose = v["head_to_head"].take();
+        v["head_poses"] = serde_json::json!([pose.clone()]);
+        let rig = parse_rig(&v.to_string()).expect("head_poses serves two heads too");
+        assert_eq!(rig.head_to_head(), two_heads().head_to_head());
+        v["head_to_head"] = pose;
+        assert!(matches!(
+            parse_rig(&v.to_string()),
+            Err(RigFileError::BothHeadPoseFields)
+        ));
+    }
+
+    #[test]
+    fn a_head_without_its_pose_or_a_fifth_head_is_refused() {
+        let mut rig = four_heads();
+        rig.head_poses.pop();
+        let err = to_json(&rig).unwrap_err();
+        assert!(matches!(
+            err,
+            RigFileError::HeadPoses { heads: 4, poses: 2 }
+        ));
+        assert!(err.to_string().contains("need 3 head pose(s)"), "{err}");
+        let mut rig = four_heads();
+        rig.heads.push(head("E"));
+        rig.head_poses.push(Pose::identity());
+        assert!(matches!(
+            to_json(&rig),
+            Err(RigFileError::HeadCount { count: 5 })
+        ));
     }
 
     #[test]
@@ -611,13 +707,10 @@ mod tests {
         ));
 
         let mut rig = two_heads();
-        rig.head_to_head = None;
+        rig.head_poses.clear();
         assert!(matches!(
             to_json(&rig),
-            Err(RigFileError::HeadToHead {
-                heads: 2,
-                present: false
-            })
+            Err(RigFileError::HeadPoses { heads: 2, poses: 0 })
         ));
 
         let mut rig = two_heads();
@@ -629,7 +722,7 @@ mod tests {
 
         let rig = RigCalibration {
             heads: vec![],
-            head_to_head: None,
+            head_poses: vec![],
             stereo_heads: vec![],
         };
         assert!(matches!(
@@ -670,7 +763,7 @@ mod tests {
     fn stereo_heads_round_trip_alone_or_beside_heads() {
         let alone = RigCalibration {
             heads: vec![],
-            head_to_head: None,
+            head_poses: vec![],
             stereo_heads: vec![stereo("S")],
         };
         let mut beside = two_heads();

@@ -52,6 +52,8 @@ pub struct RigTruthError {
     pub heads: Vec<HeadTruthError>,
     /// Head 0 -> head 1 pose, when both rigs have two heads.
     pub head_to_head: Option<PoseError>,
+    /// Head 0 -> head i pose for i = 1..K, as far as both rigs have heads.
+    pub head_poses: Vec<PoseError>,
 }
 
 /// Recovered minus true intrinsics.
@@ -91,13 +93,19 @@ pub fn rig_error(estimate: &RigCalibration, truth: &RigCalibration) -> RigTruthE
             ),
         })
         .collect();
-    let head_to_head = match (&estimate.head_to_head, &truth.head_to_head) {
-        (Some(e), Some(t)) => Some(pose_error(e, t)),
-        _ => None,
-    };
+    let head_poses: Vec<PoseError> = estimate
+        .head_poses
+        .iter()
+        .zip(&truth.head_poses)
+        .map(|(e, t)| pose_error(e, t))
+        .collect();
     RigTruthError {
         heads,
-        head_to_head,
+        head_to_head: head_poses
+            .first()
+            .copied()
+            .filter(|_| head_poses.len() == 1),
+        head_poses,
     }
 }
 
@@ -138,12 +146,12 @@ mod tests {
     fn head_to_head_translation_is_in_millimetres() {
         let mut truth = RigCalibration::single(head(800.0, 0.2));
         truth.heads.push(head(800.0, 0.2));
-        truth.head_to_head = Some(Pose::identity());
+        truth.head_poses = vec![Pose::identity()];
         let mut estimate = truth.clone();
-        estimate.head_to_head = Some(Pose {
+        estimate.head_poses = vec![Pose {
             rotation: nalgebra::Matrix3::identity(),
             translation_m: Vector3::new(0.0, 0.002, 0.0),
-        });
+        }];
         let e = rig_error(&estimate, &truth);
         let h = e.head_to_head.expect("two heads");
         assert!((h.translation_mm - 2.0).abs() < 1e-9 && h.rotation_deg.abs() < 1e-9);

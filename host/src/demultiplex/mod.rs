@@ -27,17 +27,20 @@
 //!
 //! For K heads (issue 21) [`HeadBins`] holds one bin per head, refused with
 //! the colliding heads and bins named ([`HeadBinsError::HarmonicCollision`]),
-//! and [`smallest_safe_head_bins`] picks them; the demultiplexer below still
-//! separates two.
+//! [`smallest_safe_head_bins`] picks them, and [`demultiplex_heads`]
+//! separates them (the scan's path for every head count); the
+//! [`Demultiplexer`] below is the two-head case written out.
 
 mod bins;
 mod head_bins;
+mod heads;
 
 pub use bins::{
     folded_bin, harmonic_aliases, phase_shift_rad, smallest_safe_bins, Alias, TemporalBins,
     MIN_STEPS, ODD_HARMONICS,
 };
 pub use head_bins::{smallest_safe_head_bins, HeadBins, HeadBinsError, GAMMA_HARMONICS};
+pub use heads::{demultiplex_heads, HeadsImages};
 
 use rayon::prelude::*;
 
@@ -208,25 +211,7 @@ impl Demultiplexer {
     /// Demultiplexes N row-major frames of equal size, pixel by pixel.
     pub fn frames(&self, frames: &[&[f32]]) -> Result<DemuxImages, DemuxError> {
         let steps = self.bins.steps();
-        if frames.len() != steps {
-            return Err(DemuxError::FrameCount {
-                expected: steps,
-                got: frames.len(),
-            });
-        }
-        let pixels = frames[0].len();
-        for (frame, f) in frames.iter().enumerate() {
-            if f.len() != pixels {
-                return Err(DemuxError::FrameSize {
-                    frame,
-                    expected: pixels,
-                    got: f.len(),
-                });
-            }
-            if let Some(index) = f.iter().position(|v| !v.is_finite()) {
-                return Err(DemuxError::NonFinite { frame, index });
-            }
-        }
+        let pixels = check_frames(frames, steps)?;
         let per_pixel: Vec<PixelDemux> = (0..pixels)
             .into_par_iter()
             .map_init(
@@ -253,6 +238,31 @@ impl Demultiplexer {
             },
         })
     }
+}
+
+/// Checks `frames` are `steps` frames of one size with finite values;
+/// returns their pixel count.
+fn check_frames(frames: &[&[f32]], steps: usize) -> Result<usize, DemuxError> {
+    if frames.len() != steps {
+        return Err(DemuxError::FrameCount {
+            expected: steps,
+            got: frames.len(),
+        });
+    }
+    let pixels = frames.first().map_or(0, |f| f.len());
+    for (frame, f) in frames.iter().enumerate() {
+        if f.len() != pixels {
+            return Err(DemuxError::FrameSize {
+                frame,
+                expected: pixels,
+                got: f.len(),
+            });
+        }
+        if let Some(index) = f.iter().position(|v| !v.is_finite()) {
+            return Err(DemuxError::NonFinite { frame, index });
+        }
+    }
+    Ok(pixels)
 }
 
 #[cfg(test)]

@@ -48,6 +48,49 @@ pub struct HeadReport {
     pub sphere_centre_distance_error_um: Option<f64>,
     /// How the fringes were exposed and what the exposure left.
     pub exposure: ExposureReport,
+    /// Three or four heads: what multi-view registration did to this
+    /// head's calibrated pose (null with one or two heads, and when
+    /// registration failed).
+    pub registration: Option<HeadRegistrationReport>,
+    /// The pose fusion used for this head (head A's frame <- this head's)
+    /// against the twin's true one: rotation, degrees (null for head A,
+    /// with one head and without a truth).
+    pub pose_error_vs_truth_deg: Option<f64>,
+    /// The same: translation, micrometres.
+    pub pose_error_vs_truth_um: Option<f64>,
+}
+
+/// One head's correction by multi-view registration.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct HeadRegistrationReport {
+    /// Rotation added to the calibrated pose, degrees (0 for head A, which stays fixed).
+    pub rotation_deg: f64,
+    /// Translation added at the head's points, micrometres.
+    pub translation_um: f64,
+    /// Fraction of the head's points with an inlier in another head's cloud.
+    pub fitness: f64,
+}
+
+/// Multi-view registration of three or four heads.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct MultiViewReport {
+    /// Iterations.
+    pub iterations: usize,
+    /// Converged before the iteration limit.
+    pub converged: bool,
+    /// Per overlapping pair of heads, at the registered poses.
+    pub pairs: Vec<PairReport>,
+}
+
+/// Two heads' agreement where they overlap.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct PairReport {
+    /// "A-B", "B-C", ...
+    pub heads: String,
+    /// Inlier point pairs, both directions counted.
+    pub inliers: usize,
+    /// RMS point-to-plane residual of the inliers, micrometres.
+    pub overlap_rmse_um: f64,
 }
 
 /// How a head's fringes were exposed and what the exposure left.
@@ -215,8 +258,11 @@ pub struct FusedReport {
     pub rmse_um: Option<f64>,
     /// Fraction of the measurable object surface covered.
     pub coverage: Option<f64>,
-    /// Registration (null when none ran: heads with no shared surface).
+    /// Registration of two heads (null when none ran: one head, heads with
+    /// no shared surface, or three or more heads).
     pub icp: Option<IcpReport>,
+    /// Registration of three or four heads, every pose at once (null otherwise).
+    pub registration: Option<MultiViewReport>,
     /// B->A pose used (ICP-refined, or calibrated) against the twin's
     /// true pose: rotation, degrees.
     pub pose_error_vs_truth_deg: Option<f64>,
@@ -293,7 +339,7 @@ pub struct ScanReport {
     pub truth_note: String,
     /// Samples of the measurable object surface (coverage denominator).
     pub surface_samples: Option<usize>,
-    /// Heads A and B.
+    /// One per head, A first.
     pub heads: Vec<HeadReport>,
     /// The fused cloud.
     pub fused: FusedReport,
@@ -372,6 +418,9 @@ mod tests {
                 below_modulation_floor_fraction: f64::NAN,
                 adaptive: None,
             },
+            registration: None,
+            pose_error_vs_truth_deg: None,
+            pose_error_vs_truth_um: None,
         };
         let report = ScanReport {
             scene: "x".into(),
@@ -398,6 +447,7 @@ mod tests {
                     iterations: 0,
                     converged: true,
                 }),
+                registration: None,
                 pose_error_vs_truth_deg: None,
                 pose_error_vs_truth_um: Some(0.0),
                 self_check: None,

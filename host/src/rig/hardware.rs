@@ -45,6 +45,10 @@ impl<S: FrameSource, P: Projector> Board for HardwareRig<S, P> {
         self.cameras.arm(&frames_per_head(plan, self.heads))?;
         self.board.run_plan(plan)
     }
+
+    fn limits(&self) -> Option<protocol::BoardLimits> {
+        self.board.limits()
+    }
 }
 
 impl<S: FrameSource, P: Projector> Projector for HardwareRig<S, P> {

@@ -226,6 +226,12 @@ pub trait Board {
     /// Uploads, arms, starts and follows `plan`; fails unless the board's
     /// own feedback check found the scan clean.
     fn run_plan(&mut self, plan: &ScanPlan) -> Result<ScanOutcome, RigError>;
+    /// The board's trigger and feedback lines as it reported them (`None`
+    /// when it has not said): a scan of more heads than they drive is
+    /// refused before any capture.
+    fn limits(&self) -> Option<protocol::BoardLimits> {
+        None
+    }
 }
 
 /// The LEDs lighting a pattern: drive of the red, green and blue LED in

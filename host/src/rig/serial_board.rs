@@ -46,6 +46,10 @@ impl Board for SerialBoard {
         require_clean(&outcome)?;
         Ok(outcome)
     }
+
+    fn limits(&self) -> Option<protocol::BoardLimits> {
+        self.client.board_limits()
+    }
 }
 
 #[cfg(test)]

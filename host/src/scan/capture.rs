@@ -1,15 +1,16 @@
 //! Capture of the heads' frames for each mode, and their reduction to the
 //! plain N-step frames the per-head reconstruction reads.
 //!
-//! - sequential: head A alone, then head B alone (a board run each; a
-//!   one-head rig has head A's alone).
-//! - simultaneous-multiplexed: one board run, both heads at once, N = 8
-//!   steps per period, head A's shifts on temporal bin 1 and head B's on
-//!   bin 2 ([`crate::demultiplex`]). Each camera's 8 samples per period are
-//!   demultiplexed per pixel; its own head's (phase, modulation, background)
-//!   is re-expressed as 4 equivalent 4-step frames (`A + B cos(phi + pi n/2)`,
-//!   which the 4-step decoder returns exactly), so the unchanged
-//!   reconstruction runs on them.
+//! - sequential: head A alone, then head B alone, and so on (a board run
+//!   each; a one-head rig has head A's alone).
+//! - simultaneous-multiplexed: one board run, every head at once, each
+//!   head's shifts on its own temporal bin ([`multiplex_bins`]: two heads
+//!   N = 8 on bins 1 and 2; three N = 12 on 1, 4, 5; four N = 15 on 1, 4,
+//!   5, 6). Each camera's N samples per period are demultiplexed per pixel
+//!   ([`crate::demultiplex::demultiplex_heads`]); its own head's (phase,
+//!   modulation, background) is re-expressed as 4 equivalent 4-step frames
+//!   (`A + B cos(phi + pi n/2)`, which the 4-step decoder returns exactly),
+//!   so the unchanged reconstruction runs on them.
 //! - simultaneous: one run, both heads show identical 4-step sequences at
 //!   once, then three flat fields (both dark, A alone full on, B alone
 //!   full on); pixels the flat fields show lit by both projectors are
@@ -28,7 +29,9 @@ use crate::dealias::{
     dealias_frames, dealias_frames_learned, mask_pixels, AnalyticDealiaser, AnalyticParams,
     DealiasMethod, DealiasStats,
 };
-use crate::demultiplex::{phase_shift_rad, Demultiplexer, DemuxError, TemporalBins};
+use crate::demultiplex::{
+    demultiplex_heads, smallest_safe_head_bins, DemuxError, HeadBins, GAMMA_HARMONICS,
+};
 use crate::raster::Raster;
 use crate::rig::{Board, Camera, Projector};
 
@@ -82,7 +85,7 @@ pub fn capture<R: Board + Projector + Camera>(
             exposures: config.exposures.name(),
         }),
         Mode::Simultaneous => simultaneous(rig, config, progress),
-        Mode::SimultaneousMultiplexed => multiplexed(rig, config, progress),
+        Mode::SimultaneousMultiplexed => multiplexed(rig, config, heads, progress),
     }
 }
 
@@ -114,8 +117,8 @@ pub(super) fn run(
     Ok(())
 }
 
-/// Head A alone, then head B alone, each taking the fringe set once per
-/// exposure scale (one board run each).
+/// Head A alone, then head B alone, and so on, each taking the fringe set
+/// once per exposure scale (one board run each).
 fn sequential<R: Board + Projector + Camera>(
     rig: &mut R,
     config: &ScanConfig,
@@ -129,8 +132,8 @@ fn sequential<R: Board + Projector + Camera>(
         config,
     );
     let mut raw = Vec::new();
-    for (h, set) in [HeadSet::A, HeadSet::B].into_iter().take(heads).enumerate() {
-        let name = ["capture A", "capture B"][h];
+    for (h, name) in CAPTURE_STAGES.into_iter().enumerate().take(heads) {
+        let set = HeadSet::single(h).ok_or(ScanError::HeadCount { heads })?;
         progress(Progress::Stage {
             name,
             total: 2 * scales.len() as u64,
@@ -218,20 +221,40 @@ fn simultaneous<R: Board + Projector + Camera>(
     })
 }
 
+/// Progress stage names of the sequential capture, per head.
+const CAPTURE_STAGES: [&str; protocol::limits::MAX_HEADS] =
+    ["capture A", "capture B", "capture C", "capture D"];
+
+/// The temporal bins of a multiplexed scan of `heads` heads: two heads keep
+/// DESIGN.md's N = 8 on bins 1 and 2 (safe against odd harmonics; gamma
+/// needs pre-compensated patterns, as measured); three or four take the
+/// fewest steps whose bins are safe against gamma's 2nd and 3rd harmonics
+/// too (12 steps for three, 15 for four), since more heads leave no safe
+/// choice as short as 8.
+pub fn multiplex_bins(heads: usize) -> Result<HeadBins, ScanError> {
+    match heads {
+        2 => Ok(HeadBins::design_default()),
+        _ => smallest_safe_head_bins(heads, &GAMMA_HARMONICS, 32)
+            .ok_or(ScanError::HeadCount { heads }),
+    }
+}
+
 fn multiplexed<R: Board + Projector + Camera>(
     rig: &mut R,
     config: &ScanConfig,
+    heads: usize,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Captured, ScanError> {
-    let bins = TemporalBins::design_default();
+    let bins = multiplex_bins(heads)?;
     let n = bins.steps();
     let count = config.periods_px.len() * n;
+    let all = HeadSet::all(heads).ok_or(ScanError::HeadCount { heads })?;
     progress(Progress::Stage {
-        name: "capture A+B",
-        total: 3,
+        name: "capture multiplexed",
+        total: 1 + heads as u64,
     });
-    for (h, bin) in [bins.bin_a(), bins.bin_b()].into_iter().enumerate() {
-        let shifts: Vec<f64> = (0..n).map(|k| phase_shift_rad(bin, k, n)).collect();
+    for h in 0..heads {
+        let shifts = bins.shifts_rad(h).ok_or(ScanError::HeadCount { heads })?;
         let patterns = for_projector(
             plan::shifted_fringes(config.projector_px, &config.periods_px, &shifts),
             config,
@@ -240,18 +263,16 @@ fn multiplexed<R: Board + Projector + Camera>(
     }
     run(
         rig,
-        &plan::one_pattern_per_exposure(HeadSet::BOTH, count)?,
-        "A+B multiplexed",
+        &plan::one_pattern_per_exposure(all, count)?,
+        "all heads multiplexed",
     )?;
     progress(Progress::Step);
-    let demux = Demultiplexer::new(bins);
     let mut raw = Vec::new();
     let mut frames = Vec::new();
-    // Heads A and B, on bins 1 and 2 (check_before_capture).
-    for (h, head) in HEAD_NAMES.into_iter().enumerate().take(2) {
+    for (h, head) in HEAD_NAMES.into_iter().enumerate().take(heads) {
         let taken = rig.take_frames(h)?;
         frames.push(
-            demultiplexed_frames(&demux, &taken, h)
+            demultiplexed_frames(&bins, &taken, h)
                 .map_err(|source| ScanError::Demultiplex { head, source })?,
         );
         raw.push(taken);
@@ -261,8 +282,8 @@ fn multiplexed<R: Board + Projector + Camera>(
     Ok(Captured {
         raw,
         frames,
-        set_scales: vec![vec![1.0]; 2],
-        images: vec![count; 2],
+        set_scales: vec![vec![1.0]; heads],
+        images: vec![count; heads],
         adaptive: Vec::new(),
         steps: 4,
         noise_factor: (4.0f32 / n as f32).sqrt(),
@@ -273,20 +294,16 @@ fn multiplexed<R: Board + Projector + Camera>(
 /// Head `head`'s 4 equivalent frames per period from a camera's N samples
 /// per period (period-major).
 fn demultiplexed_frames(
-    demux: &Demultiplexer,
+    bins: &HeadBins,
     taken: &[Raster<f32>],
     head: usize,
 ) -> Result<Vec<Raster<f32>>, DemuxError> {
-    let n = demux.bins().steps();
+    let n = bins.steps();
     let mut out = Vec::new();
     for period in taken.chunks(n) {
         let slices: Vec<&[f32]> = period.iter().map(|r| r.data.as_slice()).collect();
-        let images = demux.frames(&slices)?;
-        let own = if head == 0 {
-            &images.head_a
-        } else {
-            &images.head_b
-        };
+        let mut images = demultiplex_heads(bins, &slices)?;
+        let own = images.heads.swap_remove(head);
         let (w, h) = period[0].size();
         for step in 0..4 {
             let shift = std::f32::consts::FRAC_PI_2 * step as f32;
@@ -422,10 +439,11 @@ pub fn resolve_measured_overlap(
 mod tests {
     use super::*;
 
+    use crate::demultiplex::phase_shift_rad;
+
     #[test]
     fn demultiplexed_frames_decode_to_each_heads_own_phase() {
-        let bins = TemporalBins::design_default();
-        let demux = Demultiplexer::new(bins);
+        let demux = HeadBins::design_default();
         let (phi_a, phi_b) = (0.7f64, -2.1f64);
         let taken: Vec<Raster<f32>> = (0..8)
             .map(|k| {

@@ -1,13 +1,14 @@
-//! Fusion of the two head clouds: ICP of B onto A from the calibrated
-//! pose, then a merge by quality; without shared surface (simultaneous mode
-//! with the aliased overlap masked out) the calibrated pose alone, loudly.
+//! Fusion of the head clouds. Two heads: ICP of B onto A from the
+//! calibrated pose, then a merge by quality; without shared surface
+//! (simultaneous mode with the aliased overlap masked out) the calibrated
+//! pose alone, loudly. Three or four: [`super::fuse_views`].
 
 use nalgebra::{Isometry3, Vector3};
 
 use super::clouds::{from_fusion, to_fusion, transformed, with_head_attributes};
 use super::self_check::{self, SelfCheck};
 use super::{Mode, ScanConfig, ScanError};
-use crate::calibration::Pose;
+use crate::calibration::RigCalibration;
 use crate::fusion::{
     self, merge_clouds_indexed, DuplicateRule, FuseParams, FusionError, IcpParams, IcpResult,
     MergeParams,
@@ -35,6 +36,8 @@ pub struct HeadsFused {
     /// ICP of B onto A (`None` with one head, without shared surface, or
     /// when fusion failed).
     pub icp: Option<IcpResult>,
+    /// Three or four heads: the joint registration of every head's pose.
+    pub views: Option<fusion::MultiViewResult>,
     /// Each head's frame into head A's: the pose the scan used.
     pub a_from_head: Vec<Isometry3<f64>>,
     /// The calibration's checks that need no truth (with ICP).
@@ -43,19 +46,24 @@ pub struct HeadsFused {
     pub failure: Option<String>,
 }
 
-/// Two heads: ICP of B onto A from the calibrated `head_to_head`, the
+/// Two heads: ICP of B onto A from the calibrated head-to-head pose, the
 /// calibration self-check, one cloud; when ICP fails, still a result (the
-/// heads by the calibrated pose) that says why. One head: its cloud.
+/// heads by the calibrated pose) that says why. One head: its cloud. Three
+/// or four: joint registration ([`super::fuse_views::fuse_views`]).
 pub fn fuse_heads(
     recons: &[Reconstruction],
-    head_to_head: Option<Pose>,
+    calibration: &RigCalibration,
     config: &ScanConfig,
     warnings: &mut Vec<String>,
 ) -> Result<HeadsFused, ScanError> {
-    let ([a, b], Some(a_to_b)) = (recons, head_to_head) else {
+    if recons.len() > 2 {
+        return super::fuse_views::fuse_views(recons, calibration, config, warnings);
+    }
+    let ([a, b], Some(a_to_b)) = (recons, calibration.head_to_head()) else {
         return Ok(HeadsFused {
             cloud: recons.first().map(|r| r.cloud.clone()).unwrap_or_default(),
             icp: None,
+            views: None,
             a_from_head: vec![Isometry3::identity()],
             self_check: None,
             failure: None,
@@ -83,6 +91,7 @@ pub fn fuse_heads(
             Ok(HeadsFused {
                 cloud,
                 icp: fused.icp,
+                views: None,
                 a_from_head: vec![Isometry3::identity(), a_from_b_used],
                 self_check,
                 failure: None,
@@ -94,6 +103,7 @@ pub fn fuse_heads(
             Ok(HeadsFused {
                 cloud: PointCloud::default(),
                 icp: None,
+                views: None,
                 a_from_head: vec![Isometry3::identity(), a_from_b_calibrated],
                 self_check: None,
                 failure: Some(why),

@@ -18,7 +18,7 @@ use crate::unwrap::PixelStatus;
 
 /// Per-head and fused figures against the truth, and the coverage denominator.
 pub struct Measured {
-    /// Heads A and B.
+    /// Per head, A first.
     pub heads: Vec<HeadTruth>,
     /// The fused cloud.
     pub fused: FusedTruth,
@@ -108,23 +108,28 @@ pub fn measure(
             overlap,
             frame_fit,
             spheres,
+            residual_pose_error: None,
             aliased_mask: aliased_masks
                 .get(h)
                 .map(|m| aliasing::agreement(m, &g.overlap)),
         });
     }
-    // The pose used maps B's calibrated frame into A's; in true frames:
-    let residual_pose_error = match (&heads[..], a_from_head.get(1)) {
-        ([a, b], Some(a_from_b_used)) => {
-            let used_in_true_frames = a.frame_fit.true_from_estimate
-                * a_from_b_used
-                * b.frame_fit.true_from_estimate.inverse();
-            let diff = used_in_true_frames * truth.b_from_a(0, 1);
-            Some((
-                diff.rotation.angle().to_degrees(),
-                diff.translation.vector.norm(),
-            ))
-        }
+    // The pose used maps each head's calibrated frame into A's; in true frames:
+    for h in 1..heads.len() {
+        let Some(a_from_h_used) = a_from_head.get(h) else {
+            break;
+        };
+        let used_in_true_frames = heads[0].frame_fit.true_from_estimate
+            * a_from_h_used
+            * heads[h].frame_fit.true_from_estimate.inverse();
+        let diff = used_in_true_frames * truth.b_from_a(0, h);
+        heads[h].residual_pose_error = Some((
+            diff.rotation.angle().to_degrees(),
+            diff.translation.vector.norm(),
+        ));
+    }
+    let residual_pose_error = match &heads[..] {
+        [_, b] => b.residual_pose_error,
         _ => None,
     };
     Ok(Measured {

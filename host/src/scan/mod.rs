@@ -2,11 +2,13 @@
 //!
 //! ```text
 //! RigCalibration (a rig file from `calibrate`; sim default: the twin's truth)
-//! per head (sequential mode: head A alone, then head B alone):
+//! per head (sequential mode: head A alone, then head B alone, ...):
 //!   fringe set ──Projector::load_sequence──> DMD table
 //!   plan (one pattern per exposure) ──Board::run_plan──> board-clock timeline
 //!   ──Camera::take_frames──> one frame per trigger ──Reconstructor──> cloud
 //! clouds A, B ──fusion::fuse_heads (ICP from the calibrated B->A)──> fused cloud
+//! clouds A..D (3-4 heads) ──fusion::register_views (every pose at once,
+//!   from the calibrated ones)──merge_views──> fused cloud
 //! every cloud ──truth_frame (rigid fit of its frame)──metrics (twin ground truth,
 //!   when there is one)──> RMSE, coverage
 //! ```
@@ -27,6 +29,7 @@ pub mod capture;
 pub mod clouds;
 pub mod exposure;
 mod fuse;
+mod fuse_views;
 pub mod measure;
 pub mod metrics;
 pub mod output;
@@ -58,22 +61,18 @@ pub use truth::{CameraTruth, GroundTruth};
 /// (`protocol::limits::MAX_HEADS`).
 pub const HEAD_NAMES: [&str; protocol::limits::MAX_HEADS] = ["A", "B", "C", "D"];
 
-/// Heads the scan pipeline captures, reconstructs and fuses: one, or two
-/// fused by ICP of B onto A. The board and protocol take up to
-/// `protocol::limits::MAX_HEADS`, but a scan of more (issue 21) is refused
-/// with [`ScanError::HeadsNotWired`] until capture and multi-view fusion
-/// handle them.
-pub const SCAN_HEADS_WIRED: usize = 2;
-
-/// How the two heads share time.
+/// How the heads share time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
-    /// Head A alone, then head B alone (seed 000's reference runs): no aliasing.
+    /// Head A alone, then head B alone, and so on (seed 000's reference
+    /// runs): no aliasing.
     Sequential,
     /// Both heads at once with identical sequences: the overlap is aliased,
     /// de-aliased per pixel or masked ([`ScanConfig::dealias`]).
     Simultaneous,
-    /// Both at once, N = 8, head A's shifts at temporal frequency 1, B's at 2,
+    /// All heads at once, each head's shifts on its own temporal frequency
+    /// (two heads: N = 8, A on 1, B on 2; three or four: the fewest steps
+    /// whose bins are safe against gamma's 2nd and 3rd harmonics),
     /// separated per pixel by [`crate::demultiplex`].
     SimultaneousMultiplexed,
 }
@@ -183,10 +182,22 @@ pub enum ScanError {
         /// Heads in the calibration.
         heads: usize,
     },
-    /// The calibration has more heads than the scan pipeline handles yet
-    /// (within what the board and protocol take).
-    #[error("the calibration has {heads} heads; scans of more than {SCAN_HEADS_WIRED} heads are not wired yet (capture and fusion drive heads A and B only)")]
-    HeadsNotWired {
+    /// The rig has more heads than the connected sync board has lines for.
+    #[error("the rig has {heads} heads; the sync board has {output_channels} trigger lines and {feedback_channels} feedback lines (two of each per head): {max_heads} heads")]
+    TooManyHeadsForBoard {
+        /// Heads in the calibration.
+        heads: usize,
+        /// The board's trigger outputs.
+        output_channels: u8,
+        /// The board's feedback inputs.
+        feedback_channels: u8,
+        /// Heads those lines drive.
+        max_heads: usize,
+    },
+    /// Simultaneous mode with identical sequences de-aliases two
+    /// projectors, not more.
+    #[error("mode simultaneous (identical sequences, de-aliased per pixel) separates two projectors; a rig of {heads} heads scans sequential or simultaneous-multiplexed")]
+    SimultaneousNeedsTwo {
         /// Heads in the calibration.
         heads: usize,
     },
@@ -196,11 +207,16 @@ pub enum ScanError {
     /// `--dealias learned` without a loaded network.
     #[error("learned de-aliasing needs a model (--dealias-model)")]
     NoLearnedModel,
-    /// Two heads need the pose between them.
-    #[error("the calibration has two heads but no head_to_head pose")]
-    NoHeadToHead,
-    /// Simultaneous modes share the time of two heads.
-    #[error("mode {mode:?} runs two heads at once; a one-head rig scans sequentially")]
+    /// Every head after the first needs its pose from head A.
+    #[error("the calibration has {heads} heads but {poses} head pose(s) from head A (need {})", heads - 1)]
+    NoHeadPoses {
+        /// Heads in the calibration.
+        heads: usize,
+        /// Poses it has.
+        poses: usize,
+    },
+    /// Simultaneous modes share the time of two or more heads.
+    #[error("mode {mode:?} runs two or more heads at once; a one-head rig scans sequentially")]
     ModeNeedsTwoHeads {
         /// The mode asked for.
         mode: Mode,
@@ -357,6 +373,10 @@ pub struct HeadTruth {
     pub frame_fit: truth_frame::FrameFit,
     /// Each sphere of known size this head saw, fitted (frame fitted onto the truth).
     pub spheres: Vec<spheres::SphereFigures>,
+    /// Error of the pose fusion used for this head (head A's frame <- this
+    /// head's, registered or calibrated) against the twin's, both frames
+    /// fitted onto the truth: (degrees, metres); `None` for head A.
+    pub residual_pose_error: Option<(f64, f64)>,
 }
 
 /// The fused result.
@@ -368,6 +388,9 @@ pub struct FusedResult {
     /// share no surface, as in simultaneous mode with the aliased overlap
     /// masked out).
     pub icp: Option<IcpResult>,
+    /// Three or four heads: every head's pose registered at once (per head
+    /// the correction and fitness, per overlapping pair the overlap RMSE).
+    pub views: Option<crate::fusion::MultiViewResult>,
     /// Figures against the ground truth (`None` on hardware).
     pub truth: Option<FusedTruth>,
     /// The calibration's checks that need no truth (two heads with ICP).
@@ -442,16 +465,17 @@ pub fn check_before_capture(
     if heads == 0 || heads > protocol::limits::MAX_HEADS {
         return Err(ScanError::HeadCount { heads });
     }
-    // Before anything else about heads: capture and fusion index heads A
-    // and B only, and would otherwise scan the first two of a larger rig.
-    if heads > SCAN_HEADS_WIRED {
-        return Err(ScanError::HeadsNotWired { heads });
-    }
-    if heads == 2 && calibration.head_to_head.is_none() {
-        return Err(ScanError::NoHeadToHead);
+    if calibration.head_poses.len() != heads - 1 {
+        return Err(ScanError::NoHeadPoses {
+            heads,
+            poses: calibration.head_poses.len(),
+        });
     }
     if heads == 1 && config.mode != Mode::Sequential {
         return Err(ScanError::ModeNeedsTwoHeads { mode: config.mode });
+    }
+    if heads > 2 && config.mode == Mode::Simultaneous {
+        return Err(ScanError::SimultaneousNeedsTwo { heads });
     }
     if !(config.saturation_level > 0.0 && config.saturation_level <= 1.0) {
         return Err(ScanError::SaturationLevel(config.saturation_level));
@@ -487,6 +511,21 @@ pub fn check_before_capture(
         return Err(ScanError::NoLearnedModel);
     }
     Ok(())
+}
+
+/// Refuses, before any capture, a rig of more heads than the connected
+/// board reported lines for (a board that has not said is left to refuse
+/// the plan itself).
+fn check_board_heads(board: &impl Board, heads: usize) -> Result<(), ScanError> {
+    match board.limits() {
+        Some(limits) if heads > limits.max_heads() => Err(ScanError::TooManyHeadsForBoard {
+            heads,
+            output_channels: limits.output_channels,
+            feedback_channels: limits.feedback_channels,
+            max_heads: limits.max_heads(),
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// Wall-clock time per stage, logged as each ends.
@@ -529,6 +568,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     let mut clock = Clock::start();
     check_before_capture(calibration, config)?;
     let heads = calibration.heads.len();
+    check_board_heads(rig, heads)?;
     let mut captured = capture::capture(rig, config, calibration, progress)?;
     clock.lap("capture");
     let mut warnings = Vec::new();
@@ -581,10 +621,11 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     let fuse::HeadsFused {
         cloud: fused_cloud,
         icp,
+        views,
         a_from_head,
         self_check,
         failure: fusion_failure,
-    } = fuse::fuse_heads(&recons, calibration.head_to_head, config, &mut warnings)?;
+    } = fuse::fuse_heads(&recons, calibration, config, &mut warnings)?;
     progress(Progress::Step);
     progress(Progress::Done);
     clock.lap("fuse");
@@ -649,6 +690,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         fused: FusedResult {
             cloud: fused_cloud,
             icp,
+            views,
             truth: fused_truth,
             self_check,
             failure: fusion_failure,

@@ -11,8 +11,8 @@ use crate::io::outputs::{OutputSet, OutputSetError};
 use crate::io::ply::{write_ply, PlyError};
 use crate::io::report::{
     write_report, AdaptiveReport, AliasedMaskReport, DealiasReport, ExposureReport, FrameFitReport,
-    FrameOffset, FusedReport, HeadReport, IcpReport, NetworkRunReport, ReportError, ScanReport,
-    SelfCheckReport, SphereReport,
+    FrameOffset, FusedReport, HeadRegistrationReport, HeadReport, IcpReport, MultiViewReport,
+    NetworkRunReport, PairReport, ReportError, ScanReport, SelfCheckReport, SphereReport,
 };
 use crate::io::report_html::{scan_page, write_html, PageError, PagePicture};
 use crate::pictures::{head_pictures, HeadPictures, KINDS};
@@ -150,7 +150,8 @@ pub fn report(scan: &ScanResult) -> ScanReport {
         heads: scan
             .heads
             .iter()
-            .map(|h| {
+            .enumerate()
+            .map(|(index, h)| {
                 let t = h.truth.as_ref();
                 HeadReport {
                     name: h.name.into(),
@@ -199,6 +200,20 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                         .and_then(|t| centre_distance_error_m(&t.spheres))
                         .map(|e| e * um),
                     exposure: exposure_report(h, &c.exposures),
+                    registration: scan.fused.views.as_ref().and_then(|v| {
+                        let view = v.views.get(index)?;
+                        Some(HeadRegistrationReport {
+                            rotation_deg: view.rotation_correction_deg,
+                            translation_um: view.translation_correction_m * um,
+                            fitness: view.fitness,
+                        })
+                    }),
+                    pose_error_vs_truth_deg: t
+                        .and_then(|t| t.residual_pose_error)
+                        .map(|(deg, _)| deg),
+                    pose_error_vs_truth_um: t
+                        .and_then(|t| t.residual_pose_error)
+                        .map(|(_, m)| m * um),
                 }
             })
             .collect(),
@@ -213,6 +228,19 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                 fitness: icp.fitness,
                 iterations: icp.iterations,
                 converged: icp.converged,
+            }),
+            registration: scan.fused.views.as_ref().map(|v| MultiViewReport {
+                iterations: v.iterations,
+                converged: v.converged,
+                pairs: v
+                    .pairs
+                    .iter()
+                    .map(|p| PairReport {
+                        heads: format!("{}-{}", HEAD_NAMES[p.heads.0], HEAD_NAMES[p.heads.1]),
+                        inliers: p.inliers,
+                        overlap_rmse_um: p.overlap_rmse_m * um,
+                    })
+                    .collect(),
             }),
             pose_error_vs_truth_deg: scan
                 .fused

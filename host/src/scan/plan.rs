@@ -177,10 +177,16 @@ pub fn patterns_per_scaled_exposure(
             max: MAX_EXPOSURES.min(protocol::limits::MAX_SLOTS_PER_CYCLE / slots),
         });
     }
-    let wiring = [
-        head(0, ProjectorModel::Dlpc350, CameraModel::Mono6Mp),
-        head(1, ProjectorModel::Dlpc350, CameraModel::Mono6Mp),
-    ];
+    // Heads A and B are always wired (the dual-head board's plan, which a
+    // one-head rig runs too); a plan for head C or D wires up to it, so a
+    // board with lines for two heads refuses it before anything runs.
+    let wired = (0..protocol::limits::MAX_HEADS)
+        .filter(|&h| heads.contains(h))
+        .max()
+        .map_or(2, |last| (last + 1).max(2));
+    let wiring: Vec<_> = (0..wired as u8)
+        .map(|h| head(h, ProjectorModel::Dlpc350, CameraModel::Mono6Mp))
+        .collect();
     let period_ns = u32::try_from(patterns as u64 * u64::from(frame_ns))
         .map_err(|_| PlanBuildError::ExposureScale { scale })?;
     let mut plan = ScanPlan::new(&wiring, 1, period_ns, MARGIN_NS).map_err(|_| {
@@ -231,6 +237,28 @@ mod tests {
                 .expect("valid");
         }
         assert!(one_pattern_per_exposure(HeadSet::A, MAX_EXPOSURES + 1).is_err());
+    }
+
+    #[test]
+    fn plans_for_heads_c_and_d_wire_up_to_them_and_need_a_board_with_their_lines() {
+        let eight_lines = BoardLimits {
+            output_channels: 8,
+            feedback_channels: 8,
+            ..BoardLimits::STM32G474
+        };
+        for (set, wired) in [
+            (HeadSet::C, 3),
+            (HeadSet::D, 4),
+            (HeadSet::all(3).unwrap(), 3),
+            (HeadSet::all(4).unwrap(), 4),
+        ] {
+            let plan = one_pattern_per_exposure(set, 12).unwrap();
+            assert_eq!(plan.heads.len(), wired);
+            plan.clone()
+                .validate(&eight_lines)
+                .expect("valid on 8 lines");
+            assert!(plan.validate(&BoardLimits::STM32G474).is_err());
+        }
     }
 
     #[test]

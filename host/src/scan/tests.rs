@@ -16,7 +16,10 @@ fn rig(heads: usize, head_to_head: bool) -> RigCalibration {
             .take(heads)
             .map(|n| head(n))
             .collect(),
-        head_to_head: head_to_head.then(Pose::identity),
+        head_poses: (1..heads)
+            .filter(|_| head_to_head)
+            .map(|_| Pose::identity())
+            .collect(),
         stereo_heads: vec![],
     }
 }
@@ -26,17 +29,24 @@ fn rigs_and_modes_the_board_cannot_run_are_refused_by_name() {
     let config = ScanConfig::new("x");
     check_before_capture(&rig(1, false), &config).unwrap();
     check_before_capture(&rig(2, true), &config).unwrap();
-    // Within the protocol's heads but past what the pipeline scans: refused
-    // as not wired yet, not scanned as its first two heads.
+    // Three and four heads scan sequentially and multiplexed; identical
+    // sequences de-alias two projectors only.
     for heads in 3..=4 {
-        let err = check_before_capture(&rig(heads, true), &config).unwrap_err();
+        check_before_capture(&rig(heads, true), &config).unwrap();
+        let mut multiplexed = config.clone();
+        multiplexed.mode = Mode::SimultaneousMultiplexed;
+        check_before_capture(&rig(heads, true), &multiplexed).unwrap();
+        let mut simultaneous = config.clone();
+        simultaneous.mode = Mode::Simultaneous;
+        simultaneous.periods_px = dealias_periods_px(1280);
+        let err = check_before_capture(&rig(heads, true), &simultaneous).unwrap_err();
         assert!(
-            matches!(err, ScanError::HeadsNotWired { heads: h } if h == heads),
+            matches!(err, ScanError::SimultaneousNeedsTwo { heads: h } if h == heads),
             "{err}"
         );
+        let err = check_before_capture(&rig(heads, false), &config).unwrap_err();
         assert!(
-            err.to_string()
-                .contains("scans of more than 2 heads are not wired yet"),
+            matches!(err, ScanError::NoHeadPoses { heads: h, poses: 0 } if h == heads),
             "{err}"
         );
     }
@@ -52,7 +62,7 @@ fn rigs_and_modes_the_board_cannot_run_are_refused_by_name() {
     ));
     assert!(matches!(
         check_before_capture(&rig(2, false), &config),
-        Err(ScanError::NoHeadToHead)
+        Err(ScanError::NoHeadPoses { heads: 2, poses: 0 })
     ));
     let mut simultaneous = config.clone();
     simultaneous.mode = Mode::Simultaneous;

@@ -94,7 +94,7 @@ mod tests {
         )
         .unwrap();
         let want = truth::b_from_a(&rig).inverse();
-        let got = used.rig.head_to_head.unwrap().to_isometry().inverse();
+        let got = used.rig.head_to_head().unwrap().to_isometry().inverse();
         assert!((got.translation.vector - want.translation.vector).norm() < 1e-12);
         assert!(got.rotation.angle_to(&want.rotation) < 1e-9);
         let e = used.vs_truth.expect("estimate compared");

@@ -12,7 +12,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use hil_sim::board::{spawn_on_pty, SimBoardConfig, SimBoardHandle};
+use hil_sim::board::{spawn_board_on_pty, SimBoard, SimBoardConfig, SimBoardHandle};
 use hil_sim::devices::{patterns_in_window, Displayed};
 use hil_sim::twin::{Display, Exposure, Pattern, ProjectorTimeline, SensorModel, Shown, TwinRig};
 use protocol::ScanPlan;
@@ -37,6 +37,10 @@ pub struct SimRigConfig {
     pub sensor: SensorModel,
     /// Seed of the cameras' noise.
     pub noise_seed: u64,
+    /// The simulated board's lines (`BoardLimits::STM32G474`: 4 trigger
+    /// and 4 feedback lines, two heads; a rig of three or four heads needs
+    /// a board with 8).
+    pub board_limits: protocol::BoardLimits,
 }
 
 /// Board on a pty + twin cameras. Head `h` is the twin's camera `h` and
@@ -63,10 +67,11 @@ impl SimRig {
     /// Starts a simulated board on a pty and connects the host's serial
     /// client to it (handshake done).
     pub fn start(twin: Arc<TwinRig>, config: SimRigConfig) -> Result<Self, RigError> {
-        let board = spawn_on_pty(config.board).map_err(|e| RigError::Backend {
-            what: "simulated board on a pty".into(),
-            source: Box::new(e),
-        })?;
+        let board = spawn_board_on_pty(SimBoard::with_limits(config.board, config.board_limits))
+            .map_err(|e| RigError::Backend {
+                what: "simulated board on a pty".into(),
+                source: Box::new(e),
+            })?;
         let path = board.path().unwrap_or(Path::new("")).to_path_buf();
         let board_link = SerialBoard::open(&path, config.client)?;
         let heads = twin.rig().cameras.len();
@@ -199,6 +204,10 @@ impl Board for SimRig {
         self.check_plan(plan)?;
         self.slots_per_frame = slots_per_frame(plan, self.slots_per_frame.len());
         self.board_link.run_plan(plan)
+    }
+
+    fn limits(&self) -> Option<protocol::BoardLimits> {
+        self.board_link.limits()
     }
 }
 

@@ -37,6 +37,10 @@ pub struct SimScanConfig {
     /// hil-sim's byte-level controller (default: patterns straight to the
     /// simulated DMDs).
     pub projector_driver: Option<Controller>,
+    /// Trigger (and as many feedback) lines of the simulated board; `None`:
+    /// the STM32G474's 4 (two heads) for a scene of one or two heads, 8 for
+    /// three or four.
+    pub board_lines: Option<u8>,
 }
 
 impl SimScanConfig {
@@ -54,6 +58,7 @@ impl SimScanConfig {
             sim_projector_gamma: 1.0,
             calibration: CalibrationSource::TwinTruth,
             projector_driver: None,
+            board_lines: None,
         }
     }
 }
@@ -81,6 +86,18 @@ pub fn shot_noise_share(sensor: &SensorModel) -> f32 {
     (half_e / (half_e + sensor.read_noise_e.powi(2))) as f32
 }
 
+/// The simulated board's lines: `lines` trigger and as many feedback
+/// lines, or by default the STM32G474's 4 for one or two heads and 8 for
+/// three or four.
+pub fn sim_board_limits(lines: Option<u8>, heads: usize) -> protocol::BoardLimits {
+    let lines = lines.unwrap_or(if heads <= 2 { 4 } else { 8 });
+    protocol::BoardLimits {
+        output_channels: lines,
+        feedback_channels: lines,
+        ..protocol::BoardLimits::STM32G474
+    }
+}
+
 /// What can stop a simulated scan: the scan's own errors, or the twin's.
 #[derive(Debug, thiserror::Error)]
 pub enum SimScanError {
@@ -90,8 +107,8 @@ pub enum SimScanError {
     /// The scene could not be built or rendered.
     #[error("digital twin")]
     Twin(#[from] TwinError),
-    /// The scene's rig is not one or two camera-projector heads.
-    #[error("scene {scene} has {cameras} cameras and {projectors} projectors; a scan takes one or two heads (a camera and a projector each)")]
+    /// The scene's rig is not one to four camera-projector heads.
+    #[error("scene {scene} has {cameras} cameras and {projectors} projectors; a scan takes 1 to {} heads (a camera and a projector each)", protocol::limits::MAX_HEADS)]
     HeadCount {
         /// Scene name.
         scene: String,
@@ -140,7 +157,7 @@ pub fn run_sim(
         p.gamma = config.sim_projector_gamma;
     }
     let heads = rig.cameras.len();
-    if !(1..=2).contains(&heads) || rig.projectors.len() != heads {
+    if !(1..=protocol::limits::MAX_HEADS).contains(&heads) || rig.projectors.len() != heads {
         return Err(SimScanError::HeadCount {
             scene: scan.scene.clone(),
             cameras: rig.cameras.len(),
@@ -176,6 +193,7 @@ pub fn run_sim(
             client: scan.client,
             sensor: sim_sensor(),
             noise_seed: config.seed,
+            board_limits: sim_board_limits(config.board_lines, heads),
         },
     )?;
     if let Some(controller) = config.projector_driver {

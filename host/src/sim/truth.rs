@@ -9,7 +9,7 @@ use nalgebra::Isometry3;
 
 use super::calibration::from_twin::{head_from_twin, pose_from_twin};
 use crate::calibration::RigCalibration;
-use crate::scan::{CameraTruth, GroundTruth, HEAD_NAMES, SCAN_HEADS_WIRED};
+use crate::scan::{CameraTruth, GroundTruth, HEAD_NAMES};
 
 /// The twin's per-pixel truth of its first `heads` cameras (head `h` is
 /// camera `h` with projector `h`) as plain data, for a scan reconstructed
@@ -95,7 +95,7 @@ pub fn head_from_world(rig: &Rig, h: usize) -> Isometry3<f64> {
 }
 
 /// The rig calibration of the twin's first `heads` camera/projector pairs:
-/// each head in its camera's frame, `head_to_head` = head A's frame -> head B's.
+/// each head in its camera's frame, `head_poses[i - 1]` = head A's frame -> head i's.
 pub fn twin_calibration(rig: &Rig, heads: usize) -> RigCalibration {
     let heads_out = (0..heads)
         .map(|h| {
@@ -103,12 +103,14 @@ pub fn twin_calibration(rig: &Rig, heads: usize) -> RigCalibration {
                 .unwrap_or_else(|| panic!("the twin rig has no camera/projector pair {h}"))
         })
         .collect();
-    // pose_from_twin inverts a twin (device -> world) pose, so hand it B -> A
-    // to get the A -> B pose the calibration stores.
-    let head_to_head = (heads == 2).then(|| pose_from_twin(&b_from_a(rig).inverse()));
+    // pose_from_twin inverts a twin (device -> world) pose, so hand it
+    // head i -> A to get the A -> head i pose the calibration stores.
+    let head_poses = (1..heads)
+        .map(|h| pose_from_twin(&head_from_first(rig, h).inverse()))
+        .collect();
     RigCalibration {
         heads: heads_out,
-        head_to_head,
+        head_poses,
         stereo_heads: vec![],
     }
 }
@@ -124,13 +126,18 @@ pub fn scene_calibration(
         .cameras
         .len()
         .min(rig.projectors.len())
-        .min(SCAN_HEADS_WIRED);
+        .min(protocol::limits::MAX_HEADS);
     Ok(twin_calibration(&rig, heads))
 }
 
 /// Head A's frame -> head B's frame.
 pub fn b_from_a(rig: &Rig) -> Isometry3<f64> {
-    head_from_world(rig, 1) * head_from_world(rig, 0).inverse()
+    head_from_first(rig, 1)
+}
+
+/// Head `h`'s frame from head A's (the twin's true pose).
+pub fn head_from_first(rig: &Rig, h: usize) -> Isometry3<f64> {
+    head_from_world(rig, h) * head_from_world(rig, 0).inverse()
 }
 
 #[cfg(test)]

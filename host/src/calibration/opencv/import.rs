@@ -302,7 +302,7 @@ impl Imported {
             Self::Head(head) => RigCalibration::single(head),
             Self::Stereo(stereo) => RigCalibration {
                 heads: vec![],
-                head_to_head: None,
+                head_poses: vec![],
                 stereo_heads: vec![stereo],
             },
             Self::Camera(_) => return Err(ImportError::CameraOnly),

@@ -323,7 +323,7 @@ fn rig_round_trips_through_yaml_and_xml_in_both_units() {
 
             let rig = RigCalibration {
                 heads: vec![],
-                head_to_head: None,
+                head_poses: vec![],
                 stereo_heads: vec![stereo()],
             };
             let text = to_text(&rig_to_storage(&rig, None, unit).unwrap(), format);
@@ -379,7 +379,7 @@ fn second_projector_and_rectified_layouts() {
     let mut s = rig_to_storage(
         &RigCalibration {
             heads: vec![],
-            head_to_head: None,
+            head_poses: vec![],
             stereo_heads: vec![stereo()],
         },
         None,

@@ -216,7 +216,7 @@ pub fn calibrate_scene(
     .map_err(SceneCalibrationError::HeadToHead)?;
     let rig = RigCalibration {
         heads: heads.iter().map(|c| c.head.clone()).collect(),
-        head_to_head: Some(head_to_head.a_to_b),
+        head_poses: vec![head_to_head.a_to_b],
         stereo_heads: vec![],
     };
     Ok(SceneCalibration {
@@ -262,7 +262,7 @@ pub fn truth(rig: &Rig, names: [&str; 2]) -> Option<RigCalibration> {
     let head_to_head: Pose = world_to_1.compose(&world_to_0.inverse());
     Some(RigCalibration {
         heads,
-        head_to_head: Some(head_to_head),
+        head_poses: vec![head_to_head],
         stereo_heads: vec![],
     })
 }

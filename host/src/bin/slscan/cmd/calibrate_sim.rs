@@ -119,7 +119,7 @@ pub fn run(args: &SimOptions, head: &str, out: &Path, options: &HeadOptions) -> 
     };
     let rig = RigCalibration {
         heads: calibrated,
-        head_to_head,
+        head_poses: head_to_head.into_iter().collect(),
         stereo_heads: vec![],
     };
     write_rig(out, &rig).with_context(|| format!("writing {}", out.display()))?;

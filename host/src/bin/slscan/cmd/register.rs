@@ -125,7 +125,7 @@ pub fn register_clouds(args: &RegistrationArgs) -> anyhow::Result<Registered> {
 fn initial_guess(args: &RegistrationArgs, unit_m: f64) -> anyhow::Result<Isometry3<f64>> {
     if let Some(path) = &args.initial_rig {
         let rig = read_rig(path).with_context(|| format!("reading {}", path.display()))?;
-        let Some(a_to_b) = rig.head_to_head else {
+        let Some(a_to_b) = rig.head_to_head() else {
             bail!("{}: no head_to_head pose (a one-head rig)", path.display());
         };
         return Ok(a_to_b.to_isometry().inverse());

@@ -29,13 +29,14 @@ pub struct Args {
     /// Scan the simulated rig (board on a pty, digital-twin cameras).
     #[arg(long, conflicts_with_all = ["port", "frames_from", "cameras"])]
     sim: bool,
-    /// Built-in twin scene of one or two heads (--sim; `hil-sim scenes` lists them).
+    /// Built-in twin scene of one to four heads (--sim; `hil-sim scenes`
+    /// lists them; `ring-3` and `ring-4` have three and four).
     #[arg(long, default_value = "large-part")]
     scene: String,
     /// How the heads share time.
     #[arg(long, value_enum, default_value_t = ModeArg::Sequential)]
     mode: ModeArg,
-    /// Output folder (scan.ply, head_a.ply, head_b.ply, report.json, PNGs).
+    /// Output folder (scan.ply, head_a.ply, head_b.ply, ..., report.json, PNGs).
     #[arg(long)]
     out: PathBuf,
     /// Camera width, pixels (--sim; on hardware the calibration's).
@@ -83,7 +84,7 @@ pub struct Args {
     /// Hardware, --camera: the TriggerSource the sync board's line enters by.
     #[arg(long, default_value = "Line0")]
     camera_trigger_source: String,
-    /// The rig calibration file (slscan-rig JSON, one or two heads): required on
+    /// The rig calibration file (slscan-rig JSON, one to four heads): required on
     /// hardware; with --sim, reconstruct with it and seed the ICP from it
     /// (`slscan calibrate --sim --scene NAME --out FILE`) instead of the
     /// digital twin's TRUE devices (the default, labelled so in the report).
@@ -137,6 +138,11 @@ pub struct Args {
     /// go straight to the simulated DMDs).
     #[arg(long, value_enum, requires = "sim")]
     projector_driver: Option<ProjectorDriverArg>,
+    /// Trigger lines (and as many feedback lines) of the simulated sync
+    /// board, two per head (--sim; default: the STM32G474's 4 for a scene
+    /// of one or two heads, 8 for three or four).
+    #[arg(long, requires = "sim", value_parser = clap::value_parser!(u8).range(2..=8))]
+    sim_board_lines: Option<u8>,
     /// Pre-compensate the patterns for a projector response of this gamma
     /// (send grey^(1/gamma)).
     #[arg(long)]
@@ -342,6 +348,7 @@ fn scan_sim(
     config.seed = args.seed;
     config.sim_projector_gamma = args.sim_projector_gamma;
     config.projector_driver = args.projector_driver.map(Into::into);
+    config.board_lines = args.sim_board_lines;
     let scan = &mut config.scan;
     scan.mode = mode;
     scan.camera_px = (args.width, args.height);
@@ -765,6 +772,7 @@ fn print_summary(report: &ScanReport) {
         None if report.heads.len() == 1 => {
             println!("one head: its cloud is the scan (nothing to register)")
         }
+        None if f.registration.is_some() => print_registration(report),
         None if f.failure.is_some() => {
             println!("no fused cloud: the heads could not be registered")
         }
@@ -777,6 +785,41 @@ fn print_summary(report: &ScanReport) {
     }
     for w in &report.warnings {
         eprintln!("slscan: WARNING: {w}");
+    }
+}
+
+/// Three or four heads: what joint registration did, per head and per pair.
+fn print_registration(report: &ScanReport) {
+    let Some(r) = &report.fused.registration else {
+        return;
+    };
+    println!(
+        "multi-view registration: {} in {} iterations",
+        if r.converged {
+            "converged"
+        } else {
+            "did NOT converge"
+        },
+        r.iterations
+    );
+    for h in &report.heads {
+        if let Some(g) = &h.registration {
+            println!(
+                "  head {}: correction of the calibrated pose {:.4} deg / {:.1} um, fitness {:.3}, pose vs truth {} / {}",
+                h.name,
+                g.rotation_deg,
+                g.translation_um,
+                g.fitness,
+                figure(h.pose_error_vs_truth_deg, 4, "deg"),
+                figure(h.pose_error_vs_truth_um, 1, "um")
+            );
+        }
+    }
+    for p in &r.pairs {
+        println!(
+            "  heads {}: overlap RMSE {:.1} um over {} point pairs",
+            p.heads, p.overlap_rmse_um, p.inliers
+        );
     }
 }
 
