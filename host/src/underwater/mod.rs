@@ -8,12 +8,12 @@
 //! the path). The classical restorer inverts what is linear in that model:
 //!
 //! ```text
-//! frame (NaN / saturated pixels flagged, filled from their block for the transform)
-//!   -> noise sigma from the frame (robust high-pass residual)
-//!   -> Wiener deconvolution with the Gaussian PSF, mirror-padded FFT,
-//!      signal spectrum estimated from the frame's own smoothed periodogram
-//!   -> veil: per-block low percentile of the restored frame, bilinear, subtracted
-//!   -> restored frame, flagged pixels NaN
+//! phase-shift set (NaN / saturated pixels flagged, filled from their block for the transform)
+//!   -> Wiener deconvolution with the Gaussian PSF, one filter for every frame,
+//!      mirror-padded FFT, constant noise-to-signal ratio
+//!   -> veil: per-block low percentile of the set's per-pixel minimum
+//!      (above a dark frame when there is one), bilinear, subtracted from every frame
+//!   -> restored set, flagged pixels NaN
 //! ```
 //!
 //! What is not here yet: the learned restorer (seed 002's conditional DDPM),
@@ -23,4 +23,6 @@
 
 pub mod restore;
 
-pub use restore::{restore_classical, ClassicalRestorer, RestoreError, RestoreParams, Restored};
+pub use restore::{
+    restore_classical, ClassicalRestorer, RestoreError, RestoreParams, Restored, Veil,
+};
