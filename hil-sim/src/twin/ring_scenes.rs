@@ -4,11 +4,12 @@
 //! registration needs to pin every head's pose).
 //!
 //! ```text
-//!                 head 0 (camera at the world origin, looking along +z)
+//!                 head 0 (camera at the world origin, aimed at the blade)
 //!                    |
-//!   head K-1 ---- [blade] ---- head 1      ring of radius RING_RADIUS_M in the
-//!                    |                     x-z plane, centred on RING_CENTRE_M;
-//!                  ...                     span of the blade along world y
+//!   head K-1 ---- [blade] ---- head 1      ring of RingLayout::radius_m, parallel
+//!                    |                     to the x-z plane, RingLayout::rise_m
+//!                  ...                     above the blade's centre; span of
+//!                                          the blade along world y
 //! ```
 //!
 //! The part is turbine-blade-like: a cambered airfoil section (NACA
@@ -22,7 +23,9 @@
 //! they register on. Taper and uneven twist matter for registration: a
 //! straight extrusion slides along its span and a uniformly twisted one
 //! screws along it without changing shape, either leaving ICP a free
-//! direction. A dim square room (walls named `wall`, so truth leaves them
+//! direction. The root platform carries a dome (half an ellipsoid, longer
+//! than wide), as a blade stands on its hub: see [`ROOT_DOME_HALF_M`].
+//! A dim square room (walls named `wall`, so truth leaves them
 //! out of "the object") is the background every head sees behind the part.
 
 use std::f64::consts::{PI, TAU};
@@ -36,17 +39,62 @@ use super::mesh::Mesh;
 use super::scene::{Albedo, Material, Object, Scene};
 use super::scenes::{camera, projector, Detail};
 
-/// Centre of the blade, world frame, metres: 0.5 m in front of head 0's
-/// camera, as in every other built-in scene, and [`HEAD_RISE_M`] below it.
-pub const RING_CENTRE_M: [f64; 3] = [0.0, HEAD_RISE_M, 0.5];
-/// How far the ring of heads sits above the blade's centre, metres: each
-/// head looks down about 13 degrees, so it sees the top faces of the root
-/// platform and the tip shroud. Their normals run along the span, the one
-/// direction the blade's own faces (their normals across the span) pin
-/// only weakly.
-pub const HEAD_RISE_M: f64 = 0.12;
-/// Distance of each head's camera from the ring's centre, metres.
-pub const RING_RADIUS_M: f64 = 0.5;
+/// Where a ring's heads sit around the blade: evenly spaced in azimuth on a
+/// horizontal circle about the blade's centre, above it, all aimed at it.
+/// Head 0's camera is at the world origin, so the blade's centre is
+/// [`RingLayout::centre_m`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RingLayout {
+    /// Heads on the ring.
+    pub heads: usize,
+    /// Horizontal distance from the blade's centre to each head's camera, metres.
+    pub radius_m: f64,
+    /// How far the heads sit above the blade's centre, metres.
+    pub rise_m: f64,
+}
+
+impl RingLayout {
+    /// `ring-3`: three heads 120 degrees apart, 0.5 m from the blade's
+    /// centre, looking down 43 degrees. A surface point is measured by two
+    /// heads only where its normal lies within about 70 degrees of both
+    /// cameras and both projectors (beyond that fringes fade); from 13
+    /// degrees down, as `ring-4`, view directions 120 degrees apart in
+    /// azimuth are 115 degrees apart, leaving neighbours a window of normals
+    /// a few degrees wide (a few hundred shared points: registration
+    /// diverged). From 43 degrees down they are 79 degrees apart (cos =
+    /// cos^2(43) cos(120) + sin^2(43)), so the upward faces (platform,
+    /// shroud, root dome) and the blade's upward-tilted twisted faces are
+    /// shared by every pair. The price: looking down steeply, the heads lose
+    /// the faces the twist tilts downwards and the band under the root
+    /// platform, so all three see less of the blade's side than from 13
+    /// degrees (40-50 degrees down registers as well, seeing less still).
+    pub const THREE: RingLayout = RingLayout {
+        heads: 3,
+        radius_m: 0.37,
+        rise_m: 0.34,
+    };
+    /// `ring-4`: four heads 90 degrees apart, 0.5 m out, looking down about
+    /// 13 degrees, so they see the top faces of the root platform and the
+    /// tip shroud at grazing angles.
+    pub const FOUR: RingLayout = RingLayout {
+        heads: 4,
+        radius_m: 0.5,
+        rise_m: 0.12,
+    };
+
+    /// Centre of the blade, world frame, metres: [`Self::radius_m`] in
+    /// front of head 0's camera and [`Self::rise_m`] below it (world y
+    /// points down).
+    pub fn centre_m(&self) -> [f64; 3] {
+        [0.0, self.rise_m, self.radius_m]
+    }
+
+    /// How far each head looks down at the blade's centre, degrees.
+    pub fn elevation_deg(&self) -> f64 {
+        self.rise_m.atan2(self.radius_m).to_degrees()
+    }
+}
+
 /// Camera-to-projector baseline of each head along the ring's tangent,
 /// metres (the single head's 0.12 m).
 pub const HEAD_BASELINE_M: f64 = 0.12;
@@ -57,6 +105,16 @@ pub const BLADE_ROOT_CHORD_M: f64 = 0.13;
 /// Rotation of the blade's mid-span chord about the span axis, radians:
 /// off every head's line of sight, so no head looks straight at an edge.
 pub const BLADE_STAGGER_RAD: f64 = 0.35;
+
+/// Semi-axes of the dome on the root platform's top (along the platform's
+/// length, up, across it), metres. Heads looking down steeply share the
+/// platform's and shroud's flat tops, but a plane pins only the motion
+/// along its normal and the tilts: the dome's normals take every azimuth,
+/// so any two heads share a patch of it that pins the horizontal
+/// translations, and being longer than wide it pins the turn about the
+/// span as well. (Without it `ring-3`'s heads, 37-50 degrees down, were
+/// left up to 2 mm and 0.5 deg off, slid over the flat tops.)
+pub const ROOT_DOME_HALF_M: [f64; 3] = [0.075, 0.045, 0.037];
 
 /// Distance from the ring's centre to each wall of the room around it, metres.
 const ROOM_HALF_M: f64 = 1.0;
@@ -167,9 +225,56 @@ pub fn turbine_blade() -> BladeSurface {
     }
 }
 
+/// The root dome's triangles in its own frame (base on the local y = 0
+/// plane, rising towards -y, world up, to [`ROOT_DOME_HALF_M`]`[1]`): half
+/// an ellipsoid closed by its flat base, outward wound. Returns vertices
+/// (metres) and triangles.
+pub fn root_dome() -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+    let [ax, ay, az] = ROOT_DOME_HALF_M;
+    // Rings of latitude from the pole (i = 0) to the base (i = RINGS).
+    const RINGS: usize = 16;
+    const AROUND: usize = 64;
+    let mut vertices = vec![[0.0, -ay as f32, 0.0]];
+    for i in 1..=RINGS {
+        let polar = 0.5 * PI * i as f64 / RINGS as f64;
+        for j in 0..AROUND {
+            let around = TAU * j as f64 / AROUND as f64;
+            vertices.push([
+                (ax * polar.sin() * around.cos()) as f32,
+                (-ay * polar.cos()) as f32,
+                (az * polar.sin() * around.sin()) as f32,
+            ]);
+        }
+    }
+    let base = vertices.len() as u32;
+    vertices.push([0.0; 3]);
+    let at = |i: usize, j: usize| (1 + (i - 1) * AROUND + j % AROUND) as u32;
+    let mut triangles = Vec::with_capacity(2 * RINGS * AROUND);
+    for j in 0..AROUND {
+        triangles.push([0, at(1, j), at(1, j + 1)]);
+        triangles.push([base, at(RINGS, j + 1), at(RINGS, j)]);
+        for i in 1..RINGS {
+            triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+            triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    (vertices, triangles)
+}
+
+/// Pose of the root dome: its base on the root platform's top face, turned
+/// with the platform.
+pub fn root_dome_pose(layout: &RingLayout) -> Pose {
+    let root_twist = section(0.0).3;
+    blade_pose(layout)
+        * Pose::new(
+            V3::new(0.0, -0.5 * BLADE_SPAN_M - 0.012, 0.0),
+            V3::new(0.0, root_twist, 0.0),
+        )
+}
+
 /// Pose of the blade: at the ring's centre, staggered about the span axis.
-pub fn blade_pose() -> Pose {
-    let c = RING_CENTRE_M;
+pub fn blade_pose(layout: &RingLayout) -> Pose {
+    let c = layout.centre_m();
     Pose::new(
         V3::new(c[0], c[1], c[2]),
         V3::new(0.0, BLADE_STAGGER_RAD, 0.0),
@@ -178,13 +283,13 @@ pub fn blade_pose() -> Pose {
 
 /// Position on the ring at azimuth `phi` (0: head 0, at the world origin),
 /// and the ring's unit tangent there (head 0's camera x axis at 0).
-fn on_ring(phi: f64) -> (V3, V3) {
-    let c = V3::from(RING_CENTRE_M);
+fn on_ring(layout: &RingLayout, phi: f64) -> (V3, V3) {
+    let c = V3::from(layout.centre_m());
     let out = V3::new(phi.sin(), 0.0, -phi.cos());
     // World y points down: the heads sit at y = centre - rise.
-    let up = V3::new(0.0, -HEAD_RISE_M, 0.0);
+    let up = V3::new(0.0, -layout.rise_m, 0.0);
     (
-        c + RING_RADIUS_M * out + up,
+        c + layout.radius_m * out + up,
         V3::new(phi.cos(), 0.0, phi.sin()),
     )
 }
@@ -194,12 +299,12 @@ fn on_ring(phi: f64) -> (V3, V3) {
 /// projector [`HEAD_BASELINE_M`] along the ring from its camera, in the
 /// direction of increasing k, as the single head's projector sits to its
 /// camera's right.
-pub fn ring_heads(detail: &Detail, heads: usize) -> Rig {
-    let target = V3::from(RING_CENTRE_M);
+pub fn ring_heads(detail: &Detail, layout: &RingLayout) -> Rig {
+    let (heads, target) = (layout.heads, V3::from(layout.centre_m()));
     let (cameras, projectors): (Vec<Camera>, Vec<Projector>) = (0..heads)
         .map(|k| {
             let letter = char::from(b'a' + (k % 26) as u8);
-            let (eye, tangent) = on_ring(TAU * k as f64 / heads as f64);
+            let (eye, tangent) = on_ring(layout, TAU * k as f64 / heads as f64);
             (
                 camera(&format!("cam-{letter}"), detail, eye, target),
                 projector(
@@ -218,18 +323,18 @@ pub fn ring_heads(detail: &Detail, heads: usize) -> Rig {
     }
 }
 
-/// The blade and its enclosure, seen by `heads` heads on the ring.
-pub fn blade_ring(detail: &Detail, heads: usize) -> Result<(Scene, Rig), TwinError> {
+/// The blade and its enclosure, seen by the heads of `layout`.
+pub fn blade_ring(detail: &Detail, layout: &RingLayout) -> Result<(Scene, Rig), TwinError> {
     let surface = turbine_blade();
     let blade = Object::new(
         "turbine-blade",
         Shape::Mesh(Arc::new(Mesh::new(&surface.vertices, &surface.triangles)?)),
         Material::matte(Albedo::Constant([0.75, 0.74, 0.72])),
-        blade_pose(),
+        blade_pose(layout),
     );
     // Four two-sided walls (a sphere seen from inside would face its
     // normals away from every projector), a square room 2 m across.
-    let c = V3::from(RING_CENTRE_M);
+    let c = V3::from(layout.centre_m());
     let walls = (0..4).map(|k| {
         let yaw = TAU * k as f64 / 4.0;
         let normal = V3::new(yaw.sin(), 0.0, yaw.cos());
@@ -251,7 +356,7 @@ pub fn blade_ring(detail: &Detail, heads: usize) -> Result<(Scene, Rig), TwinErr
             name,
             Shape::Cuboid { half_m },
             Material::matte(Albedo::Constant([0.7, 0.7, 0.68])),
-            blade_pose() * Pose::new(V3::new(0.0, y_m, 0.0), V3::new(0.0, twist, 0.0)),
+            blade_pose(layout) * Pose::new(V3::new(0.0, y_m, 0.0), V3::new(0.0, twist, 0.0)),
         )
     };
     let (root, tip) = (section(0.0), section(1.0));
@@ -268,23 +373,33 @@ pub fn blade_ring(detail: &Detail, heads: usize) -> Result<(Scene, Rig), TwinErr
         tip.3,
         V3::new(0.5 * tip.0, 0.004, 0.2 * tip.0),
     );
+    let (dome_vertices, dome_triangles) = root_dome();
+    let dome = Object::new(
+        "root-dome",
+        Shape::Mesh(Arc::new(Mesh::new(&dome_vertices, &dome_triangles)?)),
+        Material::matte(Albedo::Constant([0.7, 0.7, 0.68])),
+        root_dome_pose(layout),
+    );
     let scene = Scene {
-        objects: [blade, platform, shroud].into_iter().chain(walls).collect(),
+        objects: [blade, platform, shroud, dome]
+            .into_iter()
+            .chain(walls)
+            .collect(),
         // As the other scenes: about 5 % of a projector at full drive.
         ambient_surface: [0.05; 3],
         ambient_direct: [0.01; 3],
     };
-    Ok((scene, ring_heads(detail, heads)))
+    Ok((scene, ring_heads(detail, layout)))
 }
 
 /// `ring-3`: three heads 120 degrees apart.
 pub fn ring3(detail: &Detail) -> Result<(Scene, Rig), TwinError> {
-    blade_ring(detail, 3)
+    blade_ring(detail, &RingLayout::THREE)
 }
 
 /// `ring-4`: four heads 90 degrees apart.
 pub fn ring4(detail: &Detail) -> Result<(Scene, Rig), TwinError> {
-    blade_ring(detail, 4)
+    blade_ring(detail, &RingLayout::FOUR)
 }
 
 #[cfg(test)]
@@ -316,14 +431,30 @@ mod tests {
     }
 
     /// Centroids and areas of the blade's side triangles, world frame.
-    fn side_samples() -> Vec<(V3, f64)> {
+    fn side_samples(layout: &RingLayout) -> Vec<(V3, f64)> {
         let s = turbine_blade();
-        let pose = blade_pose();
-        let v = |i: u32| {
-            let p = s.vertices[i as usize];
-            V3::new(p[0] as f64, p[1] as f64, p[2] as f64)
-        };
-        s.triangles[..s.side_triangles]
+        samples(
+            &s.vertices,
+            &s.triangles[..s.side_triangles],
+            &blade_pose(layout),
+        )
+    }
+
+    /// Centroids and areas of the root dome's curved triangles (not its
+    /// base, which lies on the platform), world frame.
+    fn dome_samples(layout: &RingLayout) -> Vec<(V3, f64)> {
+        let (vertices, triangles) = root_dome();
+        let base = (vertices.len() - 1) as u32;
+        let curved: Vec<[u32; 3]> = triangles
+            .into_iter()
+            .filter(|t| !t.contains(&base))
+            .collect();
+        samples(&vertices, &curved, &root_dome_pose(layout))
+    }
+
+    fn samples(vertices: &[[f32; 3]], triangles: &[[u32; 3]], pose: &Pose) -> Vec<(V3, f64)> {
+        let v = |i: u32| V3::from(vertices[i as usize].map(f64::from));
+        triangles
             .iter()
             .map(|t| {
                 let (a, b, c) = (v(t[0]), v(t[1]), v(t[2]));
@@ -333,19 +464,19 @@ mod tests {
             .collect()
     }
 
-    /// Per head, which side samples its camera sees AND its projector
+    /// Per head, which of `samples` its camera sees AND its projector
     /// lights (what a head can measure, as the twin's truth counts it).
-    fn measurable(heads: usize) -> (Vec<Vec<bool>>, Vec<f64>) {
+    fn measurable(layout: &RingLayout, samples: &[(V3, f64)]) -> (Vec<Vec<bool>>, Vec<f64>) {
         let (scene, rig) = blade_ring(
             &Detail {
                 camera: (320, 240),
                 projector: (640, 400),
             },
-            heads,
+            layout,
         )
         .unwrap();
         let posed = scene.at(0.0);
-        let samples = side_samples();
+        let heads = layout.heads;
         let seen = (0..heads)
             .map(|h| {
                 samples
@@ -358,6 +489,21 @@ mod tests {
             })
             .collect();
         (seen, samples.iter().map(|(_, a)| *a).collect())
+    }
+
+    /// Area fraction of the samples seen by both heads of each neighbouring pair.
+    fn shared_by_neighbours(seen: &[Vec<bool>], area: &[f64]) -> Vec<f64> {
+        let heads = seen.len();
+        (0..heads)
+            .map(|h| {
+                let next = (h + 1) % heads;
+                (0..area.len())
+                    .filter(|&i| seen[h][i] && seen[next][i])
+                    .map(|i| area[i])
+                    .sum::<f64>()
+                    / area.iter().sum::<f64>()
+            })
+            .collect()
     }
 
     /// Area fraction of the blade's side measurable by any head of `set`.
@@ -391,9 +537,42 @@ mod tests {
     }
 
     #[test]
+    fn the_root_dome_is_a_closed_outward_surface_as_high_as_its_half_axis() {
+        let (vertices, triangles) = root_dome();
+        let mut edges = std::collections::HashMap::new();
+        for t in &triangles {
+            for k in 0..3 {
+                *edges.entry((t[k], t[(k + 1) % 3])).or_insert(0) += 1;
+            }
+        }
+        for (&(a, b), &n) in &edges {
+            assert_eq!(n, 1, "edge {a}-{b} used {n} times one way");
+            assert_eq!(edges.get(&(b, a)), Some(&1), "edge {a}-{b} unpaired");
+        }
+        // Outward winding encloses a positive volume: 2/3 pi abc for half an ellipsoid
+        // (a little less, the facets cutting inside the curved surface).
+        let v = |i: u32| V3::from(vertices[i as usize].map(f64::from));
+        let volume: f64 = triangles
+            .iter()
+            .map(|t| v(t[0]).dot(&v(t[1]).cross(&v(t[2]))) / 6.0)
+            .sum();
+        let [ax, ay, az] = ROOT_DOME_HALF_M;
+        let half_ellipsoid = 2.0 / 3.0 * PI * ax * ay * az;
+        assert!(
+            volume > 0.97 * half_ellipsoid && volume < half_ellipsoid,
+            "{volume}"
+        );
+        let top = vertices.iter().map(|p| p[1]).fold(0.0, f32::min);
+        assert!((f64::from(top) + ay).abs() < 1e-6);
+    }
+
+    #[test]
     fn every_head_sees_the_blade_and_only_all_heads_together_cover_it() {
-        for heads in [3, 4] {
-            let (seen, area) = measurable(heads);
+        for layout in [RingLayout::THREE, RingLayout::FOUR] {
+            let heads = layout.heads;
+            let (seen, area) = measurable(&layout, &side_samples(&layout));
+            let (dome_seen, dome_area) = measurable(&layout, &dome_samples(&layout));
+            let dome_shared = shared_by_neighbours(&dome_seen, &dome_area);
             let all: Vec<usize> = (0..heads).collect();
             let fused = coverage(&seen, &area, &all);
             let single: Vec<f64> = (0..heads).map(|h| coverage(&seen, &area, &[h])).collect();
@@ -403,23 +582,21 @@ mod tests {
                     pairs.push(((a, b), coverage(&seen, &area, &[a, b])));
                 }
             }
-            let neighbours: Vec<f64> = (0..heads)
-                .map(|h| {
-                    let next = (h + 1) % heads;
-                    (0..area.len())
-                        .filter(|&i| seen[h][i] && seen[next][i])
-                        .map(|i| area[i])
-                        .sum::<f64>()
-                        / area.iter().sum::<f64>()
-                })
-                .collect();
+            let neighbours = shared_by_neighbours(&seen, &area);
             println!(
                 "ring-{heads}: side coverage per head {single:.3?}, pairs {pairs:.3?}, \
-                 all {fused:.3}; shared by neighbours {neighbours:.3?}"
+                 all {fused:.3}; shared by neighbours {neighbours:.3?}, of the root \
+                 dome {dome_shared:.3?}"
             );
-            // All heads together see the whole side but the band the root
-            // platform's overhang hides from heads looking down (about 1 %).
-            assert!(fused > 0.98, "ring-{heads}: all heads cover {fused}");
+            // All heads together see the whole side but what they look down
+            // on too steeply to see: from 13 degrees down (ring-4) the band
+            // the root platform's overhang hides (about 1 %); from 43
+            // degrees down (ring-3) also the faces the twist tilts
+            // downwards and a deeper band under the platform, about a
+            // quarter of the side, the price of sharing the upward faces
+            // (RingLayout::THREE).
+            let min_fused = if heads == 3 { 0.74 } else { 0.98 };
+            assert!(fused > min_fused, "ring-{heads}: all heads cover {fused}");
             // No single head and no pair comes close: each head sees about
             // half the girth, and every pair misses a band (several per cent
             // of the area, not a rounding sliver) that only another head sees.
@@ -429,33 +606,58 @@ mod tests {
             for &(pair, c) in &pairs {
                 assert!(c < fused - 0.03, "ring-{heads}: pair {pair:?} covers {c}");
             }
-            // Neighbours share a strip to register on. (Counted here with
+            // Neighbours share something to register on. (Counted here with
             // grazing views; with camera and projector both within 70 deg of
             // the normal, where fringes keep their contrast, ring-4's strips
-            // keep 4-17 % of the side but ring-3's shrink to 0-2 %, too little to
-            // register heads 0 and 1 on: see tests/ring_registration.rs.)
+            // of the side keep 4-17 % of it, enough to register on; ring-3's
+            // shrink to 0-2 % from 13 degrees down, too little, and stay a
+            // few per cent from 43 degrees: its heads register on what they
+            // share of the platform's, shroud's and dome's tops and of the
+            // blade's upward-tilted faces, see tests/ring_registration.rs.)
+            let min_side = if heads == 3 { 0.01 } else { 0.05 };
             for &o in &neighbours {
-                assert!(o > 0.05, "ring-{heads}: neighbour overlaps {neighbours:?}");
+                assert!(
+                    o > min_side,
+                    "ring-{heads}: neighbour overlaps {neighbours:?}"
+                );
+            }
+            // Looking down on it from 43 degrees, every pair of ring-3's
+            // neighbours shares a patch of the dome (its normals take every
+            // azimuth); from 13 degrees ring-4's pairs across its short
+            // axis share only a sliver, which they do not need.
+            if heads == 3 {
+                for &o in &dome_shared {
+                    assert!(
+                        o > 0.1,
+                        "ring-3: neighbours share of the dome {dome_shared:?}"
+                    );
+                }
             }
         }
     }
 
     #[test]
     fn heads_sit_on_the_ring_and_aim_at_the_blade() {
-        let (scene, rig) = ring4(&Detail::default()).unwrap();
-        assert_eq!((rig.cameras.len(), rig.projectors.len()), (4, 4));
-        assert_eq!(rig.cameras[3].name, "cam-d");
-        let centre = V3::from(RING_CENTRE_M);
-        assert!(rig.cameras[0].model.centre().norm() < 1e-12);
-        for (c, p) in rig.cameras.iter().zip(&rig.projectors) {
-            let d = c.model.centre() - centre;
-            assert!((d.y + HEAD_RISE_M).abs() < 1e-12);
-            assert!((d.xz().norm() - RING_RADIUS_M).abs() < 1e-12);
-            let baseline = (p.model.centre() - c.model.centre()).norm();
-            assert!((baseline - HEAD_BASELINE_M).abs() < 1e-12);
-            let px = c.model.project(&centre).unwrap();
-            assert!(c.model.contains(px));
+        for (layout, build) in [
+            (RingLayout::THREE, ring3 as fn(&Detail) -> _),
+            (RingLayout::FOUR, ring4),
+        ] {
+            let (scene, rig) = build(&Detail::default()).unwrap();
+            let heads = layout.heads;
+            assert_eq!((rig.cameras.len(), rig.projectors.len()), (heads, heads));
+            assert_eq!(rig.cameras[2].name, "cam-c");
+            let centre = V3::from(layout.centre_m());
+            assert!(rig.cameras[0].model.centre().norm() < 1e-12);
+            for (c, p) in rig.cameras.iter().zip(&rig.projectors) {
+                let d = c.model.centre() - centre;
+                assert!((d.y + layout.rise_m).abs() < 1e-12);
+                assert!((d.xz().norm() - layout.radius_m).abs() < 1e-12);
+                let baseline = (p.model.centre() - c.model.centre()).norm();
+                assert!((baseline - HEAD_BASELINE_M).abs() < 1e-12);
+                let px = c.model.project(&centre).unwrap();
+                assert!(c.model.contains(px));
+            }
+            assert_eq!(scene.objects[0].name, "turbine-blade");
         }
-        assert_eq!(scene.objects[0].name, "turbine-blade");
     }
 }
