@@ -1,5 +1,6 @@
-//! `slscan calibrate --sim --scene NAME`: calibrates both heads of a built-in
-//! dual-head twin scene from rendered checkerboard views
+//! `slscan calibrate --sim --scene NAME`: calibrates every head of a built-in
+//! twin scene of two to four heads (`large-part`, `ring-3`, `ring-4`, ...) and
+//! each head's pose from head A from rendered checkerboard views
 //! (`sim::calibration::twin_scene`), prints recovered against true values and
 //! writes the rig file `scan --sim --calibration FILE` reads.
 
@@ -24,7 +25,7 @@ pub struct SceneArgs<'a> {
     pub camera_px: (u32, u32),
     /// Board views per head.
     pub views: usize,
-    /// Head names.
+    /// Names of the first heads (the rest are named by their letter: C, D).
     pub names: [&'a str; 2],
     /// Rays per camera pixel and axis of the board renders.
     pub pixel_samples: u32,
@@ -45,14 +46,24 @@ pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> any
     for head in &mut heads.heads {
         head.pixel_samples = args.pixel_samples;
     }
+    let pair_name = |p: &[usize; 2]| format!("{}-{}", heads.names[p[0]], heads.names[p[1]]);
+    let shared: Vec<String> = heads
+        .pairs
+        .iter()
+        .map(|p| format!("{} {}", pair_name(&p.heads), p.world_from_board.len()))
+        .collect();
     say!(
-        "scene {scene}: {} board views per head, {} shared views for head-to-head, camera {}x{}",
+        "scene {scene}: {} heads, {} board views per head, shared views per pair: {}, camera {}x{}",
+        heads.heads.len(),
         heads.heads[0].world_from_board.len(),
-        heads.shared.len(),
+        shared.join(", "),
         detail.camera.0,
         detail.camera.1
     );
-    let what = format!("rendering and calibrating both heads of scene {scene}");
+    let what = format!(
+        "rendering and calibrating the {} heads of scene {scene}",
+        heads.heads.len()
+    );
     let cal = with_spinner(&what, || calibrate_scene(&heads, sensor, 1, options))
         .with_context(|| format!("calibrating the heads of scene {scene}"))?;
     for (h, head) in cal.heads.iter().enumerate() {
@@ -60,11 +71,14 @@ pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> any
         print_head(head);
         print_truth_comparison(&heads.heads[h].truth, head);
     }
-    say!(
-        "head-to-head from {} shared views: rms {:.4} px",
-        heads.shared.len(),
-        cal.head_to_head.rms_px
-    );
+    for (shared, pair) in heads.pairs.iter().zip(&cal.pairs) {
+        say!(
+            "head-to-head {} from {} shared views: rms {:.4} px",
+            pair_name(&shared.heads),
+            shared.world_from_board.len(),
+            pair.rms_px
+        );
+    }
     say!("recovered vs true (digital twin):");
     for (h, head) in cal.rig.heads.iter().enumerate() {
         let truth = &heads.truth.heads[h];
@@ -78,8 +92,10 @@ pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> any
             &e.camera_to_projector,
         );
     }
-    if let Some(e) = &errors.head_to_head {
-        print_pose_error("head-to-head (camera A -> camera B)", e);
+    let first = &heads.names[0];
+    for (h, e) in errors.head_poses.iter().enumerate() {
+        let name = &heads.names[h + 1];
+        print_pose_error(&format!("head pose (camera {first} -> camera {name})"), e);
     }
     write_rig(args.out, &cal.rig).with_context(|| format!("writing {}", args.out.display()))?;
     say!(

@@ -35,8 +35,10 @@ pub struct SimOptions {
     /// --sim --two-heads / --scene: name of the second head.
     #[arg(long, default_value = "B")]
     pub head_b: String,
-    /// --sim: calibrate the two heads of this built-in dual-head twin scene (same
-    /// devices and head poses as `scan --sim --scene NAME`), e.g. `large-part`.
+    /// --sim: calibrate every head of this built-in twin scene of two to four
+    /// heads and each head's pose from the first (same devices and head poses as
+    /// `scan --sim --scene NAME`), e.g. `large-part`, `ring-4`; heads past the
+    /// second are named C, D.
     #[arg(
         long,
         value_name = "NAME",
