@@ -5,6 +5,7 @@ mod dual_head;
 mod estimated_calibration;
 mod faults;
 mod firmware_parity;
+mod ring_scan;
 mod scan_overlap;
 mod single_head;
 mod sync_chain;
