@@ -44,6 +44,7 @@ fn main() -> anyhow::Result<()> {
         camera,
         projector,
         view_errors: vec![],
+        port: None,
     };
     write_rig(&dir.join("rig.json"), &RigCalibration::single(head))?;
     println!(

@@ -150,7 +150,7 @@ fn errors_at(z_m: f64) -> Errors {
         )
         .unwrap()
         .truth;
-    // The rig's true devices, in the camera frame; the twin's ports.
+    // The rig's true devices, in the camera frame.
     let head = head_from_twin(&rig, 0, 0, "A").unwrap();
     let mut config = ReconstructConfig::new(PERIODS.to_vec());
     config.noise_sigma = SensorModel::mono12().output_sigma(3000.0) as f32;
@@ -174,7 +174,9 @@ fn errors_at(z_m: f64) -> Errors {
         .0,
         SensorModel::ideal(),
     );
+    // The twin's true head carries its ports.
     let port = FlatPort::thin(PORT_DISTANCE_M, water().refractive_index).unwrap();
+    assert_eq!(head.port, Some(port));
     let tri = PortTriangulator::new(&head.camera, &port, &head.projector, &port).unwrap();
 
     // Absolute phase of the finest period -> projector column, as the pipeline does.

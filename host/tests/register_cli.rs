@@ -172,6 +172,7 @@ fn head(name: &str) -> slscan::calibration::Head {
         camera: slscan::calibration::PinholeModel::ideal(64, 48, 80.0),
         projector: slscan::calibration::PinholeModel::ideal(128, 80, 120.0),
         view_errors: vec![],
+        port: None,
     }
 }
 

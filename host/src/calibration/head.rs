@@ -309,6 +309,7 @@ pub fn calibrate_head(
             ..projector_model
         },
         view_errors,
+        port: None,
     };
     Ok(HeadCalibration {
         head,

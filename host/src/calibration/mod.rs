@@ -29,6 +29,8 @@ pub mod truth_error;
 pub mod zhang;
 
 pub use pinhole::{CameraModel, Distortion, Intrinsics, PinholeModel, Pose, ProjectorModel, Ray};
+
+use crate::triangulation::flat_port::FlatPort;
 pub use rig_file::{read_rig, write_rig, RigFileError};
 
 /// Reprojection error of one calibration view (one board pose), pixels RMS.
@@ -53,6 +55,9 @@ pub struct Head {
     pub projector: ProjectorModel,
     /// Per-view reprojection errors of the calibration that produced this head.
     pub view_errors: Vec<ViewError>,
+    /// The flat port both devices look through under water, each along its own optical
+    /// axis (`None`: the head works in air). See [`crate::triangulation::flat_port`].
+    pub port: Option<FlatPort>,
 }
 
 /// A stereo head: two calibrated cameras and an uncalibrated projector that only

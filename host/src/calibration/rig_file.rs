@@ -10,7 +10,9 @@
 //!                   "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0, "k3": 0.0,
 //!                   "rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation_m": [0,0,0]},
 //!     "projector": {"width_px": 912, "height_px": 1140, "...": "same fields"},
-//!     "view_errors": [{"view": "pose_00", "camera_rms_px": 0.08, "projector_rms_px": 0.12}]
+//!     "view_errors": [{"view": "pose_00", "camera_rms_px": 0.08, "projector_rms_px": 0.12}],
+//!     "port": {"distance_m": 0.03, "normal": [0, 0, 1], "thickness_m": 0.008,
+//!              "glass_index": 1.49, "water_index": 1.33}
 //!   }],
 //!   "head_to_head": null,
 //!   "stereo_heads": [{"name": "S", "left": {"...": "camera fields"}, "right": {"...": "camera fields"}}]
@@ -23,6 +25,13 @@
 //! pose from head 0's world frame: a two-head rig writes it as `head_to_head` (as every
 //! earlier file does), a rig of three or four as `head_poses` (one per head after the
 //! first, in order); a two-head file may give either, never both.
+//!
+//! A head's `port` is optional (absent in files of heads that work in air, and not written
+//! then): the flat window its camera and its projector each look through under water,
+//! `distance_m` in front of the device along its optical axis, `normal` in the device's
+//! frame (`[0, 0, 1]` when left out; scaled to unit length on reading), glass
+//! `thickness_m` (0: a thin port) and the glass's and the water's refractive indices
+//! (see `triangulation::flat_port`).
 //!
 //! `rotation` is row-major and, with `translation_m`, maps the head's world frame into the
 //! device (`x_d = R x_w + t`), as OpenCV's `R`/`T`. Reading parses the text (serde names a
@@ -37,6 +46,7 @@ use serde::{Deserialize, Serialize};
 use super::{
     Distortion, Head, Intrinsics, PinholeModel, Pose, RigCalibration, StereoHead, ViewError,
 };
+use crate::triangulation::flat_port::{FlatPort, FlatPortError};
 
 /// The `format` string every rig file carries.
 pub const FORMAT: &str = "slscan-rig";
@@ -143,6 +153,14 @@ pub enum RigFileError {
         /// The value.
         value: f64,
     },
+    /// A head's flat port is not physical (non-finite number, index below 1, ...).
+    #[error("{field}: {source}")]
+    Port {
+        /// Where, e.g. `heads[0].port`.
+        field: String,
+        /// What is wrong with it (boxed: it would double the size of every other error).
+        source: Box<FlatPortError>,
+    },
 }
 
 #[derive(Serialize, Deserialize)]
@@ -181,6 +199,24 @@ struct HeadDoc {
     /// As `camera_rms_px`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     projector_rms_px: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    port: Option<PortDoc>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PortDoc {
+    distance_m: f64,
+    #[serde(default = "port_axis")]
+    normal: [f64; 3],
+    thickness_m: f64,
+    glass_index: f64,
+    water_index: f64,
+}
+
+/// A port square to the optical axis.
+fn port_axis() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
 }
 
 #[derive(Serialize, Deserialize)]
@@ -340,6 +376,12 @@ pub fn validate(rig: &RigCalibration) -> Result<(), RigFileError> {
             if let Some(p) = v.projector_rms_px {
                 check_error(&format!("{field}.projector_rms_px"), p)?;
             }
+        }
+        if let Some(port) = &head.port {
+            port.validate().map_err(|source| RigFileError::Port {
+                field: format!("heads[{i}].port"),
+                source: Box::new(source),
+            })?;
         }
     }
     for (i, head) in rig.stereo_heads.iter().enumerate() {
@@ -506,6 +548,32 @@ fn head_from_doc(h: HeadDoc) -> Head {
                 projector_rms_px: v.projector_rms_px,
             })
             .collect(),
+        port: h.port.as_ref().map(port_from_doc),
+    }
+}
+
+fn port_from_doc(p: &PortDoc) -> FlatPort {
+    let normal = Vector3::from(p.normal);
+    let length = normal.norm();
+    // A normal written by hand need not have unit length; one this code wrote has, and is
+    // kept bit for bit (a zero or non-finite one is left for validation to name).
+    let unit = length.is_finite() && length > 0.0 && (length - 1.0).abs() > 1e-12;
+    FlatPort {
+        distance_m: p.distance_m,
+        normal: if unit { normal / length } else { normal },
+        thickness_m: p.thickness_m,
+        glass_index: p.glass_index,
+        water_index: p.water_index,
+    }
+}
+
+fn port_to_doc(p: &FlatPort) -> PortDoc {
+    PortDoc {
+        distance_m: p.distance_m,
+        normal: p.normal.into(),
+        thickness_m: p.thickness_m,
+        glass_index: p.glass_index,
+        water_index: p.water_index,
     }
 }
 
@@ -525,6 +593,7 @@ fn head_to_doc(h: &Head) -> HeadDoc {
             .collect(),
         camera_rms_px: h.camera_rms_px(),
         projector_rms_px: h.projector_rms_px(),
+        port: h.port.as_ref().map(port_to_doc),
     }
 }
 
@@ -550,6 +619,7 @@ mod tests {
                 camera_rms_px: 0.08,
                 projector_rms_px: Some(0.12),
             }],
+            port: None,
         }
     }
 
@@ -803,6 +873,92 @@ mod tests {
         v["stereo_heads"] = serde_json::json!([{"name": "S"}]);
         let err = parse_rig(&v.to_string()).unwrap_err().to_string();
         assert!(err.contains("missing field `left`"), "{err}");
+    }
+
+    /// A thick port tilted off the optical axis.
+    fn port() -> FlatPort {
+        FlatPort::new(0.031, [0.02, -0.05, 1.0], 0.008, 1.49, 1.335).unwrap()
+    }
+
+    #[test]
+    fn ports_round_trip_and_stay_out_of_files_without_them() {
+        let mut rig = two_heads();
+        rig.heads[1].port = Some(port());
+        let text = to_json(&rig).unwrap();
+        assert_eq!(text.matches("\"port\"").count(), 1, "{text}");
+        assert_eq!(parse_rig(&text).unwrap(), rig);
+        // Files of heads in air are written as before: no `port` key.
+        assert!(!to_json(&two_heads()).unwrap().contains("port"));
+        // By hand: the normal may be left out (square to the axis) or not unit length.
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v["heads"][1]["port"] = serde_json::json!({
+            "distance_m": 0.03, "thickness_m": 0.0, "glass_index": 1.5, "water_index": 1.33
+        });
+        let read = parse_rig(&v.to_string()).unwrap();
+        assert_eq!(
+            read.heads[1].port,
+            Some(FlatPort::thin(0.03, 1.33).unwrap())
+        );
+        v["heads"][1]["port"]["normal"] = serde_json::json!([0.0, 0.0, 2.0]);
+        let read = parse_rig(&v.to_string()).unwrap();
+        assert_eq!(read.heads[1].port.unwrap().normal, Vector3::z());
+    }
+
+    /// The field and the port error of a [`RigFileError::Port`].
+    fn port_error(err: RigFileError) -> (String, FlatPortError) {
+        match err {
+            RigFileError::Port { field, source } => (field, *source),
+            other => panic!("not a port error: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn bad_ports_get_typed_errors_naming_the_head() {
+        let with = |f: fn(&mut FlatPort)| {
+            let mut rig = two_heads();
+            let mut p = port();
+            f(&mut p);
+            rig.heads[1].port = Some(p);
+            to_json(&rig).unwrap_err()
+        };
+        let err = with(|p| p.water_index = 0.8);
+        assert!(err.to_string().starts_with("heads[1].port: "), "{err}");
+        assert_eq!(
+            port_error(err),
+            (
+                "heads[1].port".into(),
+                FlatPortError::Index {
+                    field: "water_index",
+                    value: 0.8
+                }
+            )
+        );
+        assert!(matches!(
+            port_error(with(|p| p.distance_m = f64::INFINITY)).1,
+            FlatPortError::NotFinite {
+                field: "distance_m",
+                ..
+            }
+        ));
+        assert_eq!(
+            port_error(with(|p| p.thickness_m = -0.001)).1,
+            FlatPortError::Thickness(-0.001)
+        );
+        // In text: a zero normal, a port facing sideways, a missing index.
+        let mut rig = two_heads();
+        rig.heads[0].port = Some(port());
+        let mut v: serde_json::Value = serde_json::from_str(&to_json(&rig).unwrap()).unwrap();
+        v["heads"][0]["port"]["normal"] = serde_json::json!([0.0, 0.0, 0.0]);
+        let parsed = |v: &serde_json::Value| port_error(parse_rig(&v.to_string()).unwrap_err()).1;
+        assert!(matches!(parsed(&v), FlatPortError::NormalLength { .. }));
+        v["heads"][0]["port"]["normal"] = serde_json::json!([1.0, 0.0, 0.1]);
+        assert!(matches!(parsed(&v), FlatPortError::NormalTilt { .. }));
+        v["heads"][0]["port"]
+            .as_object_mut()
+            .unwrap()
+            .remove("water_index");
+        let err = parse_rig(&v.to_string()).unwrap_err().to_string();
+        assert!(err.contains("missing field `water_index`"), "{err}");
     }
 
     #[test]

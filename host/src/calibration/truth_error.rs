@@ -126,6 +126,7 @@ mod tests {
             camera: PinholeModel::ideal(640, 480, fx),
             projector,
             view_errors: Vec::new(),
+            port: None,
         }
     }
 

@@ -9,6 +9,7 @@ fn rig(heads: usize, head_to_head: bool) -> RigCalibration {
         camera: PinholeModel::ideal(64, 48, 80.0),
         projector: PinholeModel::ideal(128, 80, 120.0),
         view_errors: vec![],
+        port: None,
     };
     RigCalibration {
         heads: ["A", "B", "C", "D", "E"]

@@ -30,6 +30,7 @@ pub fn capture_with(dir: &Path, camera: PinholeModel) -> PathBuf {
         camera,
         projector,
         view_errors: vec![],
+        port: None,
     });
     write_rig(&dir.join("rig.json"), &rig).unwrap();
     images

@@ -260,6 +260,7 @@ pub fn import_storage(s: &Storage, options: &ImportOptions) -> Result<Imported> 
                     camera: first,
                     projector: second,
                     view_errors: vec![],
+                    port: None,
                 })
             } else {
                 Imported::Stereo(StereoHead {

@@ -267,6 +267,7 @@ fn head() -> Head {
         camera,
         projector,
         view_errors: vec![],
+        port: None,
     }
 }
 

@@ -9,9 +9,10 @@
 //! Both use OpenCV's pinhole + Brown-Conrady model with pixel centres at integers,
 //! so intrinsics and distortion carry over unchanged.
 
-use hil_sim::twin::{Pinhole, Rig};
+use hil_sim::twin::{Medium, Pinhole, Rig};
 
 use crate::calibration::{Distortion, Head, Intrinsics, PinholeModel, Pose, StereoHead};
+use crate::triangulation::flat_port::FlatPort;
 
 /// A twin pose (`world_from_device`, an isometry) as slscan's world -> device [`Pose`].
 pub fn pose_from_twin(world_from_device: &hil_sim::twin::Pose) -> Pose {
@@ -46,6 +47,15 @@ pub fn pinhole_from_twin(device: &Pinhole) -> PinholeModel {
     }
 }
 
+/// The twin's flat ports as a [`FlatPort`]: thin, square to each device's axis, water
+/// beyond. `None` in air (and for twin water whose index our port refuses, below 1).
+pub fn port_from_twin(medium: &Medium) -> Option<FlatPort> {
+    match medium {
+        Medium::Air => None,
+        Medium::Water(w) => FlatPort::thin(w.port_distance_m, w.refractive_index).ok(),
+    }
+}
+
 /// Twin camera `camera` and projector `projector` of `rig` as one head in slscan's
 /// convention: the head frame is the camera frame (camera pose identity, projector pose
 /// camera -> projector). Returns `None` when either index is out of range.
@@ -68,6 +78,7 @@ pub fn head_from_twin(rig: &Rig, camera: usize, projector: usize, name: &str) ->
             ..pinhole_from_twin(proj)
         },
         view_errors: Vec::new(),
+        port: port_from_twin(&rig.medium),
     })
 }
 
