@@ -57,6 +57,9 @@ const AIM_STEPS: usize = 60;
 /// paraxial start).
 const SECANT_STEPS: usize = 30;
 
+/// Column residual at which the secant iteration stops, projector pixels.
+const STOP_PX: f64 = 1e-8;
+
 /// Largest column residual accepted for a triangulated point, projector pixels.
 const MAX_RESIDUAL_PX: f64 = 1e-6;
 
@@ -334,7 +337,8 @@ impl FlatPort {
             }
             let step = (next - t).abs();
             t = next;
-            if step <= 1e-15 * (1.0 + t) {
+            // 1e-12 in the slope is 1e-9 projector pixels for any real lens.
+            if step <= 1e-12 * (1.0 + t) {
                 break;
             }
         }
@@ -450,18 +454,24 @@ impl PortTriangulator {
             return None;
         }
         let ray = self.water_ray(index)?;
-        let s0 = self.paraxial_start(&ray, column_px).unwrap_or(0.5);
-        let mut slope = None;
+        let (s0, slope0) = self
+            .paraxial_start(&ray, column_px)
+            .unwrap_or((0.5, f64::NAN));
+        let mut aim_slope = None;
         let mut h = |s: f64| -> Option<f64> {
-            let (c, t) = self.column(&ray.at(s), slope)?;
-            slope = Some(t);
+            let (c, t) = self.column(&ray.at(s), aim_slope)?;
+            aim_slope = Some(t);
             Some(c - column_px)
         };
         let (mut s_prev, mut h_prev) = (s0, h(s0)?);
-        let mut s = s0 * (1.0 + 1e-4);
+        // First step: Newton with the paraxial model's derivative; then secant steps.
+        let mut s = s0 - h_prev / slope0;
+        if !(s.is_finite() && s > 0.0) || s == s0 {
+            s = s0 * (1.0 + 1e-4);
+        }
         let mut hs = h(s)?;
         for _ in 0..SECANT_STEPS {
-            if hs.abs() <= 1e-3 * MAX_RESIDUAL_PX || hs == h_prev {
+            if hs.abs() <= STOP_PX || hs == h_prev {
                 break;
             }
             let mut next = s - hs * (s - s_prev) / (hs - h_prev);
@@ -486,9 +496,10 @@ impl PortTriangulator {
     }
 
     /// Range along `ray` where it meets the column plane of the projector's paraxial
-    /// virtual pinhole (see the module doc), ignoring projector distortion and port tilt:
-    /// the start of [`PortTriangulator::intersect`].
-    fn paraxial_start(&self, ray: &WaterRay, column_px: f64) -> Option<f64> {
+    /// virtual pinhole (see the module doc), ignoring projector distortion and port tilt,
+    /// and that model's column change per metre along the ray there: the start of
+    /// [`PortTriangulator::intersect`].
+    fn paraxial_start(&self, ray: &WaterRay, column_px: f64) -> Option<(f64, f64)> {
         let port = &self.projector_port;
         let k = &self.projector.intrinsics;
         let xn = (column_px - k.cx) / k.fx;
@@ -498,7 +509,14 @@ impl PortTriangulator {
         let e = self.projector.pose.rotation * ray.direction;
         // Plane n_w P.x - x_n P.z = x_n c0 n_w with P = q + s e.
         let s = (xn * (c0 * nw + q.z) - nw * q.x) / (nw * e.x - xn * e.z);
-        (s.is_finite() && s > 0.0).then_some(s)
+        if !(s.is_finite() && s > 0.0) {
+            return None;
+        }
+        // x_n(P) = n_w P.x / (c0 n_w + P.z) along the ray.
+        let p = q + e * s;
+        let den = c0 * nw + p.z;
+        let dxn_ds = nw * (e.x * den - p.x * e.z) / (den * den);
+        Some((s, k.fx * dxn_ds))
     }
 
     /// Triangulates every camera pixel with its projector column (row-major, NaN: no
