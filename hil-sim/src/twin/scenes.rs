@@ -116,12 +116,12 @@ pub const BUILT_IN: &[BuiltIn] = &[
     },
     BuiltIn {
         name: "ring-3",
-        about: "turbine-blade-like part (cambered airfoil, tapered, twisted 137 deg unevenly, root platform, tip shroud) inside a ring of three heads 120 deg apart looking down 13 deg: no two see it whole, all three do",
+        about: "turbine-blade-like part (cambered airfoil, tapered, twisted 137 deg unevenly, domed root platform, tip shroud) inside a ring of three heads 120 deg apart looking down 43 deg: no two see it whole, all three do",
         build: super::ring_scenes::ring3,
     },
     BuiltIn {
         name: "ring-4",
-        about: "the ring-3 turbine blade inside a ring of four heads 90 deg apart: no two see it whole, all four do",
+        about: "the ring-3 turbine blade inside a ring of four heads 90 deg apart looking down 13 deg: no two see it whole, all four do",
         build: super::ring_scenes::ring4,
     },
     BuiltIn {
