@@ -36,9 +36,10 @@ fn ring_4_heads_and_their_poses_from_head_a_are_recovered() {
     for (shared, pair) in heads.pairs.iter().zip(&cal.pairs) {
         let [a, b] = shared.heads;
         println!(
-            "pair {}-{}: {} shared views, rms {:.3} px",
+            "pair {}-{}: {} of {} shared views, rms {:.3} px",
             heads.names[a],
             heads.names[b],
+            pair.view_rms_a_px.len(),
             shared.world_from_board.len(),
             pair.rms_px
         );

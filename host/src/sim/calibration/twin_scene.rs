@@ -28,7 +28,8 @@ use hil_sim::twin::{look_at, Rig, SensorModel, TwinError, V3};
 
 use super::from_twin::{head_from_twin, pose_from_twin};
 use super::twin_head::{self, TwinHead};
-use crate::calibration::board::Target;
+use crate::calibration::board::{GrayImage, Target};
+use crate::calibration::detect::detect_target;
 use crate::calibration::extrinsics::PairCalibration;
 use crate::calibration::head::{
     calibrate_head, calibrate_head_to_head, HeadCalibration, HeadError, HeadOptions,
@@ -292,11 +293,21 @@ pub fn calibrate_scene(
                 .collect();
             images.push(rendered);
         }
-        let views: Vec<_> = images[0]
-            .iter()
-            .cloned()
-            .zip(images[1].iter().cloned())
-            .collect();
+        // A shared board one camera does not find is dropped, as calibrate_head drops a
+        // head's own views: a user would hold it again.
+        let mut views = Vec::with_capacity(images[0].len());
+        for (v, (img_a, img_b)) in images[0].iter().zip(&images[1]).enumerate() {
+            let found = |img: &GrayImage| detect_target(img, &target, &options.detect).is_ok();
+            match [found(img_a), found(img_b)] {
+                [true, true] => views.push((img_a.clone(), img_b.clone())),
+                [a_found, _] => tracing::warn!(
+                    head = %scene.names[if a_found { b } else { a }],
+                    pair = %format!("{}-{}", scene.names[a], scene.names[b]),
+                    view = v,
+                    "shared board not found; view skipped"
+                ),
+            }
+        }
         let pair = calibrate_head_to_head(
             &heads[a].head.camera,
             &heads[b].head.camera,

@@ -73,8 +73,9 @@ pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> any
     }
     for (shared, pair) in heads.pairs.iter().zip(&cal.pairs) {
         say!(
-            "head-to-head {} from {} shared views: rms {:.4} px",
+            "head-to-head {} from {} of {} shared views: rms {:.4} px",
             pair_name(&shared.heads),
+            pair.view_rms_a_px.len(),
             shared.world_from_board.len(),
             pair.rms_px
         );
