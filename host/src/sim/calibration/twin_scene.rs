@@ -34,6 +34,7 @@ use crate::calibration::extrinsics::PairCalibration;
 use crate::calibration::head::{
     calibrate_head, calibrate_head_to_head, HeadCalibration, HeadError, HeadOptions,
 };
+use crate::calibration::rodrigues::{pose_from_rodrigues, rodrigues_from_rotation};
 use crate::calibration::{Head, Pose, RigCalibration};
 
 type TwinPose = hil_sim::twin::Pose;
@@ -144,7 +145,8 @@ pub struct SceneHeads {
     pub heads: Vec<TwinHead>,
     /// Head names, in order.
     pub names: Vec<String>,
-    /// Shared views of each pair of neighbouring heads: (A, B), (B, C), ...
+    /// Shared views of each pair of neighbouring heads: (A, B), (B, C), ..., and for a
+    /// ring of three or more the closing pair (last, A).
     pub pairs: Vec<SharedViews>,
     /// The scene's true devices as a rig calibration.
     pub truth: RigCalibration,
@@ -159,6 +161,9 @@ pub struct SceneCalibration {
     pub heads: Vec<HeadCalibration>,
     /// The head-to-head refinement of each pair of [`SceneHeads::pairs`], in order.
     pub pairs: Vec<PairCalibration>,
+    /// A ring's loop error before it was spread: head A -> A around the ring
+    /// (`None` for two heads).
+    pub loop_error: Option<Pose>,
 }
 
 /// Sets up the heads of built-in scene `scene` at `detail`, each shown `views` board
@@ -211,18 +216,21 @@ pub fn scene_heads<'n>(
             }
         })
         .collect();
-    let pairs = (0..k - 1)
+    // A ring is closed by the pair (last, A): its loop error is spread over the chain.
+    let closing = if ring { k } else { k - 1 };
+    let pairs = (0..closing)
         .map(|h| {
+            let pair = [h, (h + 1) % k];
             let shared = if ring {
-                ring_shared_views(&rig, [h, h + 1])
+                ring_shared_views(&rig, pair)
             } else {
-                fixed_shared_views(&rig, [h, h + 1])
+                fixed_shared_views(&rig, pair)
             };
             if shared.world_from_board.is_empty() {
                 return Err(SceneCalibrationError::NoSharedView {
                     scene: scene.to_string(),
-                    a: names[h].clone(),
-                    b: names[h + 1].clone(),
+                    a: names[pair[0]].clone(),
+                    b: names[pair[1]].clone(),
                 });
             }
             Ok(shared)
@@ -329,14 +337,46 @@ pub fn calibrate_scene(
         );
         pairs.push(pair);
     }
+    let k = scene.heads.len();
     let pair_poses: Vec<Pose> = pairs.iter().map(|p| p.a_to_b).collect();
-    let head_poses = chain(&pair_poses);
+    let open = chain(&pair_poses[..k - 1]);
+    let (head_poses, loop_error) = match pair_poses.get(k - 1) {
+        Some(last_to_a) => {
+            let loop_error = last_to_a.compose(&open[k - 2]);
+            (close_loop(&open, &loop_error), Some(loop_error))
+        }
+        None => (open, None),
+    };
     let rig = RigCalibration {
         heads: heads.iter().map(|c| c.head.clone()).collect(),
         head_poses,
         stereo_heads: vec![],
     };
-    Ok(SceneCalibration { rig, heads, pairs })
+    Ok(SceneCalibration {
+        rig,
+        heads,
+        pairs,
+        loop_error,
+    })
+}
+
+/// Spreads a ring's loop error over its chain: `loop_error` = head A -> A around the
+/// ring (the closing pair's pose after the chain), the identity if every pair were
+/// exact. Each of the K pairs takes an equal share: head h's pose is corrected by
+/// `loop_error^(-h/K)` in head A's frame (rotation by its angle, translation
+/// linearly: the errors are small), so the closing pair is left 1/K of it.
+fn close_loop(open: &[Pose], loop_error: &Pose) -> Vec<Pose> {
+    let k = open.len() + 1;
+    let rvec = rodrigues_from_rotation(&loop_error.rotation);
+    open.iter()
+        .enumerate()
+        .map(|(i, a_to_h)| {
+            let share = -((i + 1) as f64) / k as f64;
+            let correction =
+                pose_from_rodrigues(&(share * rvec), &(share * loop_error.translation_m));
+            a_to_h.compose(&correction)
+        })
+        .collect()
 }
 
 /// Head A's frame -> head h's for h = 1..K from the neighbouring pairs' poses:
@@ -486,6 +526,7 @@ pub fn truth(rig: &Rig, names: &[&str]) -> Option<RigCalibration> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::calibration::rodrigues::rotation_angle_between;
 
     const SMALL: Detail = Detail {
         camera: (160, 120),
@@ -519,7 +560,7 @@ mod tests {
         assert_eq!(s.truth.head_poses.len(), 3);
         s.truth.validate().expect("valid truth");
         let heads: Vec<[usize; 2]> = s.pairs.iter().map(|p| p.heads).collect();
-        assert_eq!(heads, [[0, 1], [1, 2], [2, 3]]);
+        assert_eq!(heads, [[0, 1], [1, 2], [2, 3], [3, 0]]);
         for h in 0..4 {
             // Rendered in its camera's frame: boards between the camera and the wall.
             let cam = s.heads[h].rig.cameras[0].model.world_from_device;
@@ -558,6 +599,28 @@ mod tests {
             assert!((got.translation_m - want.translation_m).norm() < 1e-12);
             assert!((got.rotation - want.rotation).norm() < 1e-12);
         }
+    }
+
+    #[test]
+    fn a_loop_error_is_spread_so_the_ring_closes() {
+        let (_, rig) = built_in("ring-4", &SMALL).unwrap();
+        let t = truth(&rig, &[]).unwrap();
+        // The pairs' poses off by a small rotation and shift each: the loop misses.
+        let off = pose_from_rodrigues(&V3::new(1e-3, -2e-3, 5e-4), &V3::new(1e-3, 0.0, -2e-3));
+        let to = |h: usize| t.pose_from_first(h % 4).unwrap();
+        let pairs: Vec<Pose> = (0..4)
+            .map(|h| off.compose(&to(h + 1).compose(&to(h).inverse())))
+            .collect();
+        let open = chain(&pairs[..3]);
+        let loop_error = pairs[3].compose(&open[2]);
+        let closed = close_loop(&open, &loop_error);
+        let around = |poses: &[Pose]| pairs[3].compose(&poses[2]);
+        let angle = |p: &Pose| rotation_angle_between(&p.rotation, &nalgebra::Matrix3::identity());
+        // The closing pair keeps a quarter of the loop's error.
+        let left = around(&closed);
+        assert!(angle(&loop_error) > 1e-3);
+        assert!((angle(&left) - 0.25 * angle(&loop_error)).abs() < 1e-9);
+        assert!((left.translation_m.norm() - 0.25 * loop_error.translation_m.norm()).abs() < 2e-4);
     }
 
     #[test]

@@ -8,7 +8,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::Context;
+use nalgebra::Matrix3;
 use slscan::calibration::head::HeadOptions;
+use slscan::calibration::rodrigues::rotation_angle_between;
 use slscan::calibration::truth_error::{rig_error, PoseError};
 use slscan::calibration::{write_rig, PinholeModel};
 use slscan::sim::calibration::twin_scene::{calibrate_scene, scene_heads};
@@ -78,6 +80,15 @@ pub fn run(args: &SceneArgs, sensor: &SensorModel, options: &HeadOptions) -> any
             pair.view_rms_a_px.len(),
             shared.world_from_board.len(),
             pair.rms_px
+        );
+    }
+    if let Some(e) = &cal.loop_error {
+        say!(
+            "ring closed by {}: loop error {:.4} deg / {:.3} mm, spread over the {} pairs",
+            pair_name(&heads.pairs[heads.pairs.len() - 1].heads),
+            rotation_angle_between(&e.rotation, &Matrix3::identity()).to_degrees(),
+            e.translation_m.norm() * 1e3,
+            heads.pairs.len()
         );
     }
     say!("recovered vs true (digital twin):");
