@@ -10,6 +10,9 @@ use super::medium::Medium;
 use super::mesh::Mesh;
 use super::scene::{Albedo, Checkerboard, Material, Motion, Object, Scene, Texture};
 
+mod rotor;
+pub use rotor::{ROTOR_BLADES, ROTOR_CENTRE_M, ROTOR_REV_PER_S, ROTOR_TIP_RADIUS_M};
+
 /// Radii of seed 001's two calibration spheres, metres.
 pub const SPHERE_RADII_M: [f64; 2] = [0.0253967, 0.0253989];
 /// Distance between their centres, metres.
@@ -108,6 +111,11 @@ pub const BUILT_IN: &[BuiltIn] = &[
         name: "falling",
         about: "sphere falling under gravity past a wall (dynamic)",
         build: falling,
+    },
+    BuiltIn {
+        name: "rotor",
+        about: "seed 001's rotor-engine model: spinner hub and 7 pitched blades (190 mm across) at 1177 rpm inside a static casing and stator struts, before a wall (dynamic; high-speed mode)",
+        build: rotor::rotor,
     },
     BuiltIn {
         name: "checkerboard",
