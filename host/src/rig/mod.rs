@@ -210,6 +210,14 @@ pub enum RigError {
         /// The driver's error.
         source: dlpc::DlpcError,
     },
+    /// Colour frames asked of a camera that gives grey ones only (a mono
+    /// sensor, or a back end that reads single-channel images): the
+    /// multiplexed high-speed mode (seed 001) needs a colour camera.
+    #[error("head {head}: the camera gives no colour frames (mono sensor or grey-only back end); seed 001's multiplexed mode needs a colour camera")]
+    NotColour {
+        /// Head index.
+        head: usize,
+    },
     /// A device back end failed in a way of its own (the simulator's pty or
     /// renderer, a vendor library).
     #[error("{what}")]
@@ -279,6 +287,12 @@ pub trait Camera {
     /// trigger in trigger order (values in [0, 1]); fails when a trigger
     /// produced no frame.
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError>;
+    /// The same frames as [`Camera::take_frames`], each as its red, green
+    /// and blue planes (same units, in that order), for cameras with a
+    /// colour sensor; a camera without one answers [`RigError::NotColour`].
+    fn take_colour_frames(&mut self, head: usize) -> Result<Vec<[Raster<f32>; 3]>, RigError> {
+        Err(RigError::NotColour { head })
+    }
 }
 
 /// Checks a coloured sequence before a projector takes it: every pattern

@@ -14,7 +14,9 @@ use std::sync::Arc;
 
 use hil_sim::board::{spawn_board_on_pty, SimBoard, SimBoardConfig, SimBoardHandle};
 use hil_sim::devices::{patterns_in_window, Displayed};
-use hil_sim::twin::{Display, Exposure, Pattern, ProjectorTimeline, SensorModel, Shown, TwinRig};
+use hil_sim::twin::{
+    Display, Exposure, Image, Pattern, ProjectorTimeline, SensorModel, Shown, TwinRig,
+};
 use protocol::ScanPlan;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -280,6 +282,56 @@ impl Camera for SimRig {
     }
 
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
+        let (w, h) = self.image_size_px(head)?;
+        let frames = self.render_frames(head)?;
+        Ok(frames
+            .into_iter()
+            .map(|image| {
+                // A colour sensor's frame read as grey: the channels' mean.
+                let data = if image.channels == 1 {
+                    image.data
+                } else {
+                    image
+                        .data
+                        .chunks(image.channels)
+                        .map(|c| c.iter().sum::<f32>() / c.len() as f32)
+                        .collect()
+                };
+                Raster {
+                    width: w as usize,
+                    height: h as usize,
+                    data,
+                }
+            })
+            .collect())
+    }
+
+    /// The twin camera's R, G and B channels; a mono [`SimRigConfig::sensor`]
+    /// gives [`RigError::NotColour`].
+    fn take_colour_frames(&mut self, head: usize) -> Result<Vec<[Raster<f32>; 3]>, RigError> {
+        let (w, h) = self.image_size_px(head)?;
+        if self.sensor.channels.count() != 3 {
+            return Err(RigError::NotColour { head });
+        }
+        let frames = self.render_frames(head)?;
+        Ok(frames
+            .into_iter()
+            .map(|image| {
+                [0, 1, 2].map(|c| Raster {
+                    width: w as usize,
+                    height: h as usize,
+                    data: image.data.iter().skip(c).step_by(3).copied().collect(),
+                })
+            })
+            .collect())
+    }
+}
+
+impl SimRig {
+    /// Head `head`'s camera frames of the last plan as the twin's sensor
+    /// images (1 or 3 channels), after checking that the board triggered
+    /// every frame and showed every pattern where the plan puts it.
+    fn render_frames(&mut self, head: usize) -> Result<Vec<Image>, RigError> {
         self.check_head(head)?;
         let expected = self.slots_per_frame[head].len();
         let expected_patterns: usize = self.slots_per_frame[head].iter().sum();
@@ -320,7 +372,6 @@ impl Camera for SimRig {
         }
         check_sequencing(head, &done, &displayed, &self.slots_per_frame[head])?;
         let timelines = self.timelines();
-        let (w, h) = self.image_size_px(head)?;
         let mut frames = Vec::with_capacity(done.len());
         for (start_ns, end_ns) in done {
             let window = Exposure {
@@ -334,20 +385,7 @@ impl Camera for SimRig {
                     what: format!("twin camera {head}"),
                     source: Box::new(e),
                 })?;
-            let data = if image.channels == 1 {
-                image.data
-            } else {
-                image
-                    .data
-                    .chunks(image.channels)
-                    .map(|c| c.iter().sum::<f32>() / c.len() as f32)
-                    .collect()
-            };
-            frames.push(Raster {
-                width: w as usize,
-                height: h as usize,
-                data,
-            });
+            frames.push(image);
         }
         Ok(frames)
     }
@@ -381,5 +419,81 @@ mod tests {
         // Pattern 0 lingers into the next frame.
         let lingering = [shown(0, 10, 210), shown(1, 215, 290)];
         assert!(check_sequencing(0, &windows, &lingering, &[1, 1]).is_err());
+    }
+
+    /// A simulated head of the `plane` scene with `sensor`, R, G and B
+    /// floods loaded and run, one short exposure each.
+    fn floods_taken(sensor: SensorModel) -> SimRig {
+        use crate::scan::plan::{one_pattern_per_scaled_exposure, MIN_EXPOSURE_SCALE};
+        use hil_sim::twin::scenes::{built_in, Detail};
+        let detail = Detail {
+            camera: (48, 36),
+            projector: (64, 40),
+        };
+        let (scene, rig) = built_in("plane", &detail).unwrap();
+        let twin = Arc::new(TwinRig::new(scene, rig).unwrap());
+        let mut sim = SimRig::start(
+            twin,
+            SimRigConfig {
+                board: SimBoardConfig::default(),
+                client: ClientConfig::default(),
+                sensor,
+                noise_seed: 1,
+                board_limits: protocol::BoardLimits::STM32G474,
+            },
+        )
+        .unwrap();
+        let white = Raster::filled(64, 40, 1.0f32);
+        let leds = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        sim.load_coloured_sequence(0, &[white.clone(), white.clone(), white], &leds)
+            .unwrap();
+        // 1/32 of the standard exposure: a white flood stays below full scale.
+        let plan =
+            one_pattern_per_scaled_exposure(protocol::HeadSet::A, 3, MIN_EXPOSURE_SCALE).unwrap();
+        crate::rig::require_clean(&sim.run_plan(&plan).unwrap()).unwrap();
+        sim
+    }
+
+    #[test]
+    fn colour_frames_split_the_channels_that_grey_frames_average() {
+        // colour8 without noise, so both takes render the same images.
+        let sensor = SensorModel {
+            shot_noise: false,
+            read_noise_e: 0.0,
+            ..SensorModel::colour8()
+        };
+        let mut sim = floods_taken(sensor);
+        let colour = sim.take_colour_frames(0).unwrap();
+        let grey = sim.take_frames(0).unwrap();
+        assert_eq!((colour.len(), grey.len()), (3, 3));
+        let mean = |r: &Raster<f32>| r.data.iter().sum::<f32>() / r.data.len() as f32;
+        for (led, (planes, g)) in colour.iter().zip(&grey).enumerate() {
+            let m = planes.each_ref().map(mean);
+            assert!(m[led] > 0.1 && m[led] < 0.9, "LED {led}: {m:?}");
+            // colour8's crosstalk into the other channels is at most 0.15 / 0.85.
+            for (c, v) in m.iter().enumerate() {
+                assert!(c == led || *v < 0.3 * m[led], "LED {led}: {m:?}");
+            }
+            for p in planes {
+                assert_eq!(p.size(), (48, 36));
+            }
+            for (i, v) in g.data.iter().enumerate() {
+                let sum = planes[0].data[i] + planes[1].data[i] + planes[2].data[i];
+                assert_eq!(*v, sum / 3.0);
+            }
+        }
+    }
+
+    #[test]
+    fn a_mono_camera_gives_no_colour_frames() {
+        let mut sim = floods_taken(SensorModel::mono12());
+        let err = sim.take_colour_frames(0).unwrap_err();
+        assert!(matches!(err, RigError::NotColour { head: 0 }), "{err}");
+        assert!(err.to_string().contains("no colour frames"), "{err}");
+        assert_eq!(sim.take_frames(0).unwrap().len(), 3);
+        assert!(matches!(
+            sim.take_colour_frames(2),
+            Err(RigError::NoSuchHead { head: 2, .. })
+        ));
     }
 }
