@@ -435,16 +435,29 @@ fn finish(
     })
 }
 
+/// One time slice of a moving scene's exposure and the instant its scene
+/// is posed at.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotionSlice {
+    /// The part of the exposure it integrates.
+    pub exposure: Exposure,
+    /// When its scene is posed, seconds: the middle of the projector light
+    /// it holds (of the whole slice when it holds none).
+    pub pose_s: f64,
+}
+
 /// The time slices a moving scene's `exposure` is rendered in, in time
-/// order, each with the scene posed at its middle. The exposure is cut at
-/// every start and end of a pattern any projector showed inside it, so each
-/// displayed pattern's light lands where the surface was while that pattern
-/// was on (seed 001: 24 patterns of 200 us in one 4.8 ms exposure, each
-/// triangulated at its own instant); then the longest slices are halved
-/// until there are [`MOTION_SAMPLES`], so one long pattern still blurs.
-/// Cuts closer than [`MIN_MOTION_SLICE_S`] to the previous one are skipped.
-/// The slices tile the exposure exactly.
-pub fn motion_slices(timelines: &[ProjectorTimeline], exposure: Exposure) -> Vec<Exposure> {
+/// order. The exposure is cut at every start and end of a pattern any
+/// projector showed inside it, so each displayed pattern's light is posed at
+/// that pattern's own middle and lands where the surface was while it was
+/// on (seed 001: 24 patterns of 200 us in one 4.8 ms exposure, each
+/// triangulated at its own instant). A stretch lit by no pattern goes half
+/// to each lit neighbour (only ambient light, which needs no ray cast of its
+/// own). Then the slices with the longest light are halved until there are
+/// [`MOTION_SAMPLES`], so one long pattern still blurs. Cuts closer than
+/// [`MIN_MOTION_SLICE_S`] to the previous one are skipped. The slices tile
+/// the exposure exactly.
+pub fn motion_slices(timelines: &[ProjectorTimeline], exposure: Exposure) -> Vec<MotionSlice> {
     let (start, end) = (exposure.start_s, exposure.end_s);
     let mut cuts: Vec<f64> = timelines
         .iter()
@@ -462,41 +475,79 @@ pub fn motion_slices(timelines: &[ProjectorTimeline], exposure: Exposure) -> Vec
         }
     }
     edges.push(end);
-    let mut slices: Vec<Exposure> = edges
-        .windows(2)
-        .map(|w| Exposure {
-            start_s: w[0],
-            end_s: w[1],
-        })
-        .collect();
+    let lit = |a: f64, b: f64| {
+        let piece = Exposure {
+            start_s: a,
+            end_s: b,
+        };
+        timelines
+            .iter()
+            .flat_map(|tl| &tl.shown)
+            .any(|s| piece.overlap_s(s.start_s, s.end_s) > 0.0)
+    };
+    // (slice start, slice end, light start, light end).
+    let mut slices: Vec<[f64; 4]> = Vec::new();
+    // Start of a dark stretch not yet given to a slice.
+    let mut dark_from: Option<f64> = None;
+    for w in edges.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if !lit(a, b) {
+            dark_from.get_or_insert(a);
+            continue;
+        }
+        let mut from = a;
+        if let Some(d) = dark_from.take() {
+            match slices.last_mut() {
+                // Between two lit slices: half to each.
+                Some(prev) => {
+                    let mid = 0.5 * (d + a);
+                    prev[1] = mid;
+                    from = mid;
+                }
+                // Before the first light: all to it.
+                None => from = d,
+            }
+        }
+        slices.push([from, b, a, b]);
+    }
+    match (dark_from, slices.last_mut()) {
+        // After the last light: all to it.
+        (Some(_), Some(last)) => last[1] = end,
+        // No light at all: ambient over the whole exposure.
+        (_, None) => slices.push([start, end, start, end]),
+        (None, Some(_)) => {}
+    }
     while slices.len() < MOTION_SAMPLES {
-        // The first of the longest, so that one slice halves into 8 equal ones.
+        // The first of the longest lights, so that one halves into 8 equal ones.
         let mut i = 0;
         for (k, s) in slices.iter().enumerate() {
-            if s.duration_s() > slices[i].duration_s() {
+            if s[3] - s[2] > slices[i][3] - slices[i][2] {
                 i = k;
             }
         }
-        let s = slices[i];
-        let mid = 0.5 * (s.start_s + s.end_s);
-        slices[i].end_s = mid;
-        slices.insert(
-            i + 1,
-            Exposure {
-                start_s: mid,
-                end_s: s.end_s,
-            },
-        );
+        let [a, b, la, lb] = slices[i];
+        let mid = 0.5 * (la + lb);
+        slices[i] = [a, mid, la, mid];
+        slices.insert(i + 1, [mid, b, mid, lb]);
     }
     slices
+        .into_iter()
+        .map(|[a, b, la, lb]| MotionSlice {
+            exposure: Exposure {
+                start_s: a,
+                end_s: b,
+            },
+            pose_s: 0.5 * (la + lb),
+        })
+        .collect()
 }
 
 /// Renders what camera `camera` records during `exposure` while each
 /// projector shows its timeline: the entry point for simulated cameras.
 /// A static scene is ray-cast once; a moving one once per slice of
 /// [`motion_slices`] (at least [`MOTION_SAMPLES`], and one per displayed
-/// pattern), posed at the slice's middle, whose exposures add up. The truth
-/// is at mid-exposure. Noise comes from `rng`.
+/// pattern), posed at the middle of the slice's light, whose exposures add
+/// up. The truth is at mid-exposure. Noise comes from `rng`.
 pub fn render_exposure(
     scene: &Scene,
     rig: &Rig,
@@ -512,8 +563,8 @@ pub fn render_exposure(
     let exposed = if scene.is_dynamic() {
         let mut acc: Option<Exposed> = None;
         for slice in motion_slices(timelines, exposure) {
-            let r = Renderer::new(scene, rig, camera, 0.5 * (slice.start_s + slice.end_s))?;
-            let e = r.exposed(timelines, slice)?;
+            let r = Renderer::new(scene, rig, camera, slice.pose_s)?;
+            let e = r.exposed(timelines, slice.exposure)?;
             match acc.as_mut() {
                 None => acc = Some(e),
                 Some(a) => a.accumulate(&e),

@@ -35,10 +35,27 @@ fn one_long_pattern_still_gets_motion_samples_equal_slices() {
     }];
     let slices = motion_slices(&tl, exposure);
     assert_eq!(slices.len(), MOTION_SAMPLES);
+    let dt = 0.01 / MOTION_SAMPLES as f64;
     for (k, s) in slices.iter().enumerate() {
-        let want = 0.01 + k as f64 * 0.01 / MOTION_SAMPLES as f64;
-        assert!((s.start_s - want).abs() < 1e-15, "{k}: {s:?}");
-        assert!((s.duration_s() - 0.01 / MOTION_SAMPLES as f64).abs() < 1e-15);
+        let want = 0.01 + k as f64 * dt;
+        assert!((s.exposure.start_s - want).abs() < 1e-15, "{k}: {s:?}");
+        assert!((s.exposure.duration_s() - dt).abs() < 1e-15);
+        assert!((s.pose_s - (want + 0.5 * dt)).abs() < 1e-15);
+    }
+    // Dark throughout: still MOTION_SAMPLES slices of ambient light.
+    let dark = motion_slices(&[ProjectorTimeline::dark()], exposure);
+    assert_eq!(dark, slices);
+}
+
+fn assert_tiles(slices: &[MotionSlice], exposure: Exposure) {
+    assert_eq!(slices[0].exposure.start_s, exposure.start_s);
+    assert_eq!(slices[slices.len() - 1].exposure.end_s, exposure.end_s);
+    for w in slices.windows(2) {
+        assert_eq!(w[0].exposure.end_s, w[1].exposure.start_s);
+    }
+    for s in slices {
+        assert!(s.exposure.duration_s() >= MIN_MOTION_SLICE_S);
+        assert!(s.exposure.start_s <= s.pose_s && s.pose_s <= s.exposure.end_s);
     }
 }
 
@@ -51,8 +68,8 @@ fn slices_cut_at_every_pattern_edge_of_every_projector_and_tile_the_exposure() {
             .map(|k| shown(t0 + k as f64 * SLOT_S, t0 + (k + 1) as f64 * SLOT_S))
             .collect(),
     };
-    // A second projector with one pattern whose edges are 0.3 us off head
-    // A's (jitter: no extra slice) and one edge of its own.
+    // A second projector with one pattern whose start is 0.3 us off head
+    // A's edge (jitter: no slice of its own) and whose end cuts a slice.
     let b = ProjectorTimeline {
         shown: vec![shown(t0 + 3.0 * SLOT_S + 0.3e-6, t0 + 4.5 * SLOT_S)],
     };
@@ -61,18 +78,60 @@ fn slices_cut_at_every_pattern_edge_of_every_projector_and_tile_the_exposure() {
         end_s: t0 + 24.0 * SLOT_S + 50e-6,
     };
     let slices = motion_slices(&[a, b], exposure);
-    // Before, 24 patterns (one cut in two by B's end), after.
-    assert_eq!(slices.len(), 1 + 25 + 1);
-    assert_eq!(slices[0].start_s, exposure.start_s);
-    assert_eq!(slices[slices.len() - 1].end_s, exposure.end_s);
-    for w in slices.windows(2) {
-        assert_eq!(w[0].end_s, w[1].start_s);
+    assert_tiles(&slices, exposure);
+    // 24 patterns, one cut in two by B's end; the dark ends join the first
+    // and last pattern, posed at their patterns' middles.
+    assert_eq!(slices.len(), 25);
+    assert_eq!(slices[0].exposure.end_s, t0 + SLOT_S);
+    assert!((slices[0].pose_s - (t0 + 0.5 * SLOT_S)).abs() < 1e-15);
+    assert_eq!(slices[3].exposure.start_s, t0 + 3.0 * SLOT_S);
+    assert_eq!(slices[4].exposure.start_s, t0 + 4.0 * SLOT_S);
+    assert_eq!(slices[5].exposure.start_s, t0 + 4.5 * SLOT_S);
+    assert_eq!(slices[24].exposure.start_s, t0 + 23.0 * SLOT_S);
+    assert!((slices[24].pose_s - (t0 + 23.5 * SLOT_S)).abs() < 1e-15);
+}
+
+#[test]
+fn dark_gaps_between_patterns_go_half_to_each_neighbour() {
+    // Three 180 us patterns 200 us apart, the shutter open from 100 us
+    // before the first to 100 us after the last.
+    let t0 = 0.001;
+    let tl = [ProjectorTimeline {
+        shown: (0..3)
+            .map(|k| {
+                let a = t0 + k as f64 * SLOT_S;
+                shown(a, a + 180e-6)
+            })
+            .collect(),
+    }];
+    let exposure = Exposure {
+        start_s: t0 - 100e-6,
+        end_s: t0 + 2.0 * SLOT_S + 180e-6 + 100e-6,
+    };
+    let slices = motion_slices(&tl, exposure);
+    assert_tiles(&slices, exposure);
+    assert_eq!(slices.len(), MOTION_SAMPLES);
+    // Each pattern's light halves until there are 8 slices; every pose is
+    // the middle of the light it holds.
+    let poses: Vec<f64> = slices.iter().map(|s| s.pose_s).collect();
+    let q = 180e-6 / 4.0;
+    let want = [
+        t0 + 0.5 * q,
+        t0 + 1.5 * q,
+        t0 + 2.5 * q,
+        t0 + 3.5 * q,
+        t0 + SLOT_S + 45e-6,
+        t0 + SLOT_S + 135e-6,
+        t0 + 2.0 * SLOT_S + 45e-6,
+        t0 + 2.0 * SLOT_S + 135e-6,
+    ];
+    for (got, want) in poses.iter().zip(want) {
+        assert!((got - want).abs() < 1e-12, "{poses:?}");
     }
-    assert_eq!(slices[1].start_s, t0);
-    assert_eq!(slices[4].start_s, t0 + 3.0 * SLOT_S);
-    assert_eq!(slices[5].start_s, t0 + 4.0 * SLOT_S);
-    assert_eq!(slices[6].start_s, t0 + 4.5 * SLOT_S);
-    assert!(slices.iter().all(|s| s.duration_s() >= MIN_MOTION_SLICE_S));
+    // The first slice holds the dark lead-in, the 20 us gaps split 10/10.
+    assert_eq!(slices[0].exposure.start_s, exposure.start_s);
+    assert!((slices[4].exposure.start_s - (t0 + 190e-6)).abs() < 1e-12);
+    assert!((slices[6].exposure.start_s - (t0 + 390e-6)).abs() < 1e-12);
 }
 
 /// Seed 001's multiplexed sequence: 8 directions x R/G/B binary fringes,
@@ -168,4 +227,65 @@ fn each_of_24_patterns_lands_where_the_rotor_was_while_it_was_shown() {
         .map(|(a, b)| (a - b).abs())
         .fold(0.0f32, f32::max);
     assert!(off > 0.05 * peak, "8 slices differ by only {off} of {peak}");
+}
+
+#[test]
+fn with_dark_gaps_each_patterns_light_is_still_posed_at_its_own_middle() {
+    let detail = Detail {
+        camera: (96, 72),
+        projector: (160, 100),
+    };
+    let (scene, rig) = built_in("rotor", &detail).unwrap();
+    let t0 = 0.0071;
+    // 180 us of light every 200 us, the shutter open 30 us before and after.
+    let mut tl = multiplexed(t0, 160, 100);
+    for s in tl.shown.iter_mut() {
+        s.end_s = s.start_s + 180e-6;
+    }
+    let tl = [tl];
+    let exposure = Exposure {
+        start_s: t0 - 30e-6,
+        end_s: t0 + 23.0 * SLOT_S + 180e-6 + 30e-6,
+    };
+    assert_eq!(motion_slices(&tl, exposure).len(), 24);
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let frame = render_exposure(
+        &scene,
+        &rig,
+        0,
+        &tl,
+        exposure,
+        &SensorModel::ideal(),
+        &mut rng,
+    )
+    .unwrap();
+    let mut want: Option<Exposed> = None;
+    for s in &tl[0].shown {
+        let r = Renderer::new(&scene, &rig, 0, 0.5 * (s.start_s + s.end_s)).unwrap();
+        let e = r
+            .exposed(
+                &tl,
+                Exposure {
+                    start_s: s.start_s,
+                    end_s: s.end_s,
+                },
+            )
+            .unwrap();
+        match want.as_mut() {
+            None => want = Some(e),
+            Some(a) => a.accumulate(&e),
+        }
+    }
+    let want = want.unwrap();
+    let peak = want.per_projector[0]
+        .iter()
+        .flatten()
+        .fold(0.0f32, |m, &v| m.max(v));
+    let worst = frame.exposed.per_projector[0]
+        .iter()
+        .flatten()
+        .zip(want.per_projector[0].iter().flatten())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst <= 1e-6 * peak, "worst {worst} of peak {peak}");
 }
