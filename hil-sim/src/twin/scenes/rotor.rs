@@ -1,7 +1,8 @@
-//! The `rotor` scene: seed 001's rotating rotor-engine model (about 200 mm
-//! across, rotor inside a stator, turning at 1177 rpm) for the high-speed
-//! multiplexed mode: a spinner hub and seven pitched blades spin inside a
-//! static casing with three stator struts behind them, in front of a wall.
+//! The `rotor` scene: seed 001's rotating rotor-engine model (its model is
+//! about 200 x 197 mm, a rotor inside a stator, turning at 1177 rpm) for the
+//! high-speed multiplexed mode: a spinner hub and seven pitched blades
+//! (190 mm across) spin inside a static casing (250 mm across its flange)
+//! with three stator struts behind them, in front of a wall.
 
 use std::f64::consts::TAU;
 use std::sync::Arc;
