@@ -26,6 +26,7 @@ pub mod dealias;
 pub mod demultiplex;
 pub mod fit;
 pub mod fusion;
+pub mod highspeed;
 pub mod huge_pages;
 pub mod infer;
 pub mod io;

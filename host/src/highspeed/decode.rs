@@ -1,0 +1,397 @@
+//! One colour long exposure -> 24 absolute phase maps and 24 depth maps, each
+//! at its own pattern's instant.
+//!
+//! After demultiplexing ([`super::demux`]), every pixel is unwrapped on its own
+//! by projection distance minimisation along its epipolar segment: the camera
+//! ray, sampled between the nearest and farthest depth of the working range,
+//! crosses each direction's three fringes (R, G, B) at known phases, and the
+//! one depth where all three wrapped phases agree wins (seed 001's PDM, eq. 4,
+//! with the calibration's geometry in place of the full DMD: the whole DMD is
+//! ambiguous for these 2-D patterns, 2898 x 1170 covers each axis, not their
+//! mix). Each pattern's absolute phase then gives its own depth along the ray,
+//! so the 24 depth maps are 24 instants 200 us apart, not one average.
+
+use nalgebra::Point3;
+use rayon::prelude::*;
+
+use super::demux::{Demultiplexed, Demultiplexer, DemuxOptions};
+use super::set::{PatternSet, SetPattern};
+use super::HighSpeedError;
+use crate::calibration::{Head, Pose, ProjectorModel};
+use crate::raster::Raster;
+
+/// How one exposure is decoded.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DecoderConfig {
+    /// Nearest and farthest surface depth (camera z), metres: the epipolar segment.
+    pub depth_range_m: (f64, f64),
+    /// Samples of each pixel's epipolar segment (evenly in inverse depth).
+    pub samples: usize,
+    /// Largest RMS disagreement of a direction's three phases, cycles.
+    pub max_rms_cycles: f64,
+    /// Smallest modulation of a pattern, as a share of its LED's mean background
+    /// (zero order / directions).
+    pub min_modulation_ratio: f32,
+    /// Camera value (full scale 1) from which a channel counts as saturated.
+    pub saturation_level: f32,
+    /// Largest share of saturated pixels before the exposure is refused.
+    pub max_saturated_share: f64,
+    /// The demultiplexer's stages.
+    pub demux: DemuxOptions,
+}
+
+impl Default for DecoderConfig {
+    fn default() -> Self {
+        Self {
+            depth_range_m: (0.38, 0.66),
+            samples: 16,
+            max_rms_cycles: 0.08,
+            min_modulation_ratio: 0.25,
+            saturation_level: 0.995,
+            max_saturated_share: 0.05,
+            demux: DemuxOptions::default(),
+        }
+    }
+}
+
+/// One pattern's instant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InstantMap {
+    /// The pattern.
+    pub pattern: SetPattern,
+    /// Absolute phase, radians (NaN where not decoded).
+    pub absolute_phase: Vec<f32>,
+    /// Depth (camera z), metres (NaN where not decoded).
+    pub depth_m: Vec<f32>,
+}
+
+/// A decoded exposure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Decoded {
+    /// Image width.
+    pub width: usize,
+    /// Image height.
+    pub height: usize,
+    /// The demultiplexed fringes (wrapped phases, modulations, zero orders).
+    pub fringes: Demultiplexed,
+    /// The 24 instants in projection order.
+    pub instants: Vec<InstantMap>,
+    /// Pixels saturated in some channel (left undecoded).
+    pub saturated: usize,
+}
+
+/// The decoder of one head (calibrated camera and projector) and one set.
+pub struct Decoder {
+    set: PatternSet,
+    /// Camera frame -> projector frame.
+    camera_to_projector: Pose,
+    projector: ProjectorModel,
+    width: usize,
+    height: usize,
+    /// Per pixel, the undistorted normalised ray (x, y); NaN where undistortion fails.
+    rays: Vec<[f64; 2]>,
+    demux: Demultiplexer,
+    config: DecoderConfig,
+}
+
+impl Decoder {
+    /// Sets up for `head`'s camera images and `set` on its projector.
+    pub fn new(
+        set: PatternSet,
+        head: &Head,
+        config: DecoderConfig,
+    ) -> Result<Self, HighSpeedError> {
+        let (near, far) = config.depth_range_m;
+        if !(near.is_finite() && far.is_finite() && near > 0.0 && far > near) || config.samples < 2
+        {
+            return Err(HighSpeedError::BadConfig {
+                why: format!(
+                    "depth range {near}..{far} m with {} samples: need 0 < near < far and at least 2 samples",
+                    config.samples
+                ),
+            });
+        }
+        let dmd = (head.projector.width_px, head.projector.height_px);
+        if dmd != set.dmd_px() {
+            return Err(HighSpeedError::BadPatternSet {
+                why: format!(
+                    "the set is made for a {}x{} DMD, head {}'s projector has {}x{}",
+                    set.dmd_px().0,
+                    set.dmd_px().1,
+                    head.name,
+                    dmd.0,
+                    dmd.1
+                ),
+            });
+        }
+        let camera = head.camera;
+        let projector = head.projector;
+        let (width, height) = (camera.width_px as usize, camera.height_px as usize);
+        let rays: Vec<[f64; 2]> = (0..width * height)
+            .into_par_iter()
+            .map(|i| {
+                camera
+                    .pixel_to_normalised((i % width) as f64, (i / width) as f64)
+                    .map_or([f64::NAN; 2], |(x, y)| [x, y])
+            })
+            .collect();
+        let camera_to_projector = projector.pose.compose(&camera.pose.inverse());
+        let z_ref = 2.0 / (1.0 / near + 1.0 / far);
+        let reference: Vec<[f64; 2]> = rays
+            .par_iter()
+            .map(|r| {
+                dmd_at(&camera_to_projector, &projector, r, 1.0 / z_ref)
+                    .map_or([f64::NAN; 2], |p| p)
+            })
+            .collect();
+        let demux = Demultiplexer::new(&set, width, height, reference, config.demux)?;
+        Ok(Self {
+            set,
+            camera_to_projector,
+            projector,
+            width,
+            height,
+            rays,
+            demux,
+            config,
+        })
+    }
+
+    /// The pattern set.
+    pub fn set(&self) -> &PatternSet {
+        &self.set
+    }
+
+    /// The demultiplexer.
+    pub fn demultiplexer(&self) -> &Demultiplexer {
+        &self.demux
+    }
+
+    /// Image size (width, height).
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// The point at depth `z_m` on pixel `i`'s ray, in the camera frame (metres).
+    pub fn point(&self, i: usize, z_m: f32) -> [f32; 3] {
+        let r = self.rays[i];
+        [r[0] as f32 * z_m, r[1] as f32 * z_m, z_m]
+    }
+
+    /// Decodes one exposure: camera channels R, G, B, full scale 1.
+    pub fn decode(&self, channels: [&Raster<f32>; 3]) -> Result<Decoded, HighSpeedError> {
+        for c in channels {
+            if c.size() != (self.width, self.height) || c.data.len() != self.width * self.height {
+                return Err(HighSpeedError::WrongSize {
+                    what: "colour exposure".into(),
+                    expected: (self.width, self.height),
+                    got: c.size(),
+                });
+            }
+            if c.data.iter().any(|v| !v.is_finite()) {
+                return Err(HighSpeedError::NotFinite);
+            }
+        }
+        let level = self.config.saturation_level;
+        let saturated_px: Vec<bool> = (0..self.width * self.height)
+            .map(|i| channels.iter().any(|c| c.data[i] >= level))
+            .collect();
+        let saturated = saturated_px.iter().filter(|&&s| s).count();
+        let share = saturated as f64 / saturated_px.len() as f64;
+        if share > self.config.max_saturated_share {
+            return Err(HighSpeedError::Saturated {
+                share,
+                limit: self.config.max_saturated_share,
+            });
+        }
+        let fringes =
+            self.demux
+                .demultiplex([&channels[0].data, &channels[1].data, &channels[2].data]);
+        let p = self.set.patterns().len();
+        let w = self.width;
+        let rows: Vec<Vec<f32>> = (0..self.height)
+            .into_par_iter()
+            .map(|y| {
+                let mut row = vec![f32::NAN; 2 * p * w];
+                for x in 0..w {
+                    let i = y * w + x;
+                    if !saturated_px[i] {
+                        self.decode_pixel(i, &fringes, &mut row[2 * p * x..2 * p * (x + 1)]);
+                    }
+                }
+                row
+            })
+            .collect();
+        let instants = self
+            .set
+            .patterns()
+            .iter()
+            .map(|pattern| {
+                let m = pattern.index;
+                let mut absolute_phase = Vec::with_capacity(w * self.height);
+                let mut depth_m = Vec::with_capacity(w * self.height);
+                for row in &rows {
+                    for x in 0..w {
+                        absolute_phase.push(row[2 * p * x + 2 * m]);
+                        depth_m.push(row[2 * p * x + 2 * m + 1]);
+                    }
+                }
+                InstantMap {
+                    pattern: *pattern,
+                    absolute_phase,
+                    depth_m,
+                }
+            })
+            .collect();
+        Ok(Decoded {
+            width: w,
+            height: self.height,
+            fringes,
+            instants,
+            saturated,
+        })
+    }
+
+    /// Pixel `i`: per pattern (absolute phase, depth) into `out[2m], out[2m + 1]`.
+    fn decode_pixel(&self, i: usize, fringes: &Demultiplexed, out: &mut [f32]) {
+        let ray = self.rays[i];
+        if !ray[0].is_finite() {
+            return;
+        }
+        let (near, far) = self.config.depth_range_m;
+        let j_count = self.config.samples;
+        let (s0, s1) = (1.0 / far, 1.0 / near);
+        let ds = (s1 - s0) / (j_count - 1) as f64;
+        let mut dmd = [[f64::NAN; 2]; 64];
+        let j_count = j_count.min(dmd.len());
+        for (j, d) in dmd.iter_mut().enumerate().take(j_count) {
+            if let Some(p) = dmd_at(
+                &self.camera_to_projector,
+                &self.projector,
+                &ray,
+                s0 + j as f64 * ds,
+            ) {
+                *d = p;
+            }
+        }
+        let dmd = &dmd[..j_count];
+        let directions = self.set.directions();
+        for n in 1..=directions as u32 {
+            let pats = [0, 1, 2].map(|c| self.set.pattern(n, c));
+            let mut wrapped = [0.0f64; 3];
+            let mut good = true;
+            for (c, pat) in pats.iter().enumerate() {
+                let m = pat.index;
+                let zero = fringes.zero_order[c][i] / directions as f32;
+                let modulation = fringes.modulation[m][i];
+                good &= zero > 0.0 && modulation >= self.config.min_modulation_ratio * zero;
+                wrapped[c] = f64::from(fringes.wrapped[m][i]) / std::f64::consts::TAU;
+            }
+            if !good {
+                continue;
+            }
+            let phases: [Vec<f64>; 3] = pats.map(|pat| {
+                dmd.iter()
+                    .map(|p| pat.frequency[0] * p[0] + pat.frequency[1] * p[1])
+                    .collect()
+            });
+            let Some((j, tau, rms)) = pdm_along(&phases, &wrapped) else {
+                continue;
+            };
+            if rms > self.config.max_rms_cycles {
+                continue;
+            }
+            for (c, pat) in pats.iter().enumerate() {
+                let ph = &phases[c];
+                let predicted = ph[j] + tau * (ph[j + 1] - ph[j]);
+                let absolute = wrapped[c] + (predicted - wrapped[c]).round();
+                let Some(s) = self.solve_depth(pat, ph, absolute, &ray, s0, ds) else {
+                    continue;
+                };
+                out[2 * pat.index] = (std::f64::consts::TAU * absolute) as f32;
+                out[2 * pat.index + 1] = (1.0 / s) as f32;
+            }
+        }
+    }
+
+    /// The inverse depth where `pat`'s phase along the ray is `absolute` cycles:
+    /// the bracketing segment of the samples `ph`, then one Newton step on the
+    /// exact projection. `None` off the segment or the DMD.
+    fn solve_depth(
+        &self,
+        pat: &SetPattern,
+        ph: &[f64],
+        absolute: f64,
+        ray: &[f64; 2],
+        s0: f64,
+        ds: f64,
+    ) -> Option<f64> {
+        let j = (0..ph.len() - 1).find(|&j| {
+            let (a, b) = (ph[j], ph[j + 1]);
+            a.is_finite() && b.is_finite() && (a - absolute) * (b - absolute) <= 0.0 && a != b
+        })?;
+        let slope = (ph[j + 1] - ph[j]) / ds;
+        let mut s = s0 + j as f64 * ds + (absolute - ph[j]) / slope;
+        let p = dmd_at(&self.camera_to_projector, &self.projector, ray, s)?;
+        s -= (pat.frequency[0] * p[0] + pat.frequency[1] * p[1] - absolute) / slope;
+        let (w, h) = self.set.dmd_px();
+        let p = dmd_at(&self.camera_to_projector, &self.projector, ray, s)?;
+        let inside = p[0] >= -0.5 && p[1] >= -0.5 && p[0] < w as f64 - 0.5 && p[1] < h as f64 - 0.5;
+        (inside && s > 0.0).then_some(s)
+    }
+}
+
+/// PDM along one pixel's epipolar samples: `phases[c][j]` is colour `c`'s phase
+/// (cycles) at sample `j`, `wrapped[c]` its measured wrapped phase (cycles). Each
+/// integer order of the colour with the most cycles gives a position (segment `j`,
+/// fraction `tau`); the position where the other two agree best wins. Returns
+/// (j, tau, RMS disagreement in cycles).
+pub fn pdm_along(phases: &[Vec<f64>; 3], wrapped: &[f64; 3]) -> Option<(usize, f64, f64)> {
+    let len = phases[0].len();
+    let span = |c: usize| (phases[c][len - 1] - phases[c][0]).abs();
+    let r = (0..3).max_by(|&a, &b| span(a).total_cmp(&span(b)))?;
+    let mut best: Option<(usize, f64, f64)> = None;
+    for j in 0..len - 1 {
+        let (a, b) = (phases[r][j], phases[r][j + 1]);
+        if !(a.is_finite() && b.is_finite()) || a == b {
+            continue;
+        }
+        let (lo, hi) = (a.min(b), a.max(b));
+        let first = (lo - wrapped[r]).ceil() as i64;
+        let last = (hi - wrapped[r]).floor() as i64;
+        for k in first..=last {
+            let tau = (wrapped[r] + k as f64 - a) / (b - a);
+            // Half-open segments, so a sample's order is counted once.
+            if tau >= 1.0 && j + 2 < len {
+                continue;
+            }
+            let mut score = 0.0;
+            for c in (0..3).filter(|&c| c != r) {
+                let at = phases[c][j] + tau * (phases[c][j + 1] - phases[c][j]);
+                let d = at - wrapped[c];
+                score += (d - d.round()).powi(2);
+            }
+            if best.is_none_or(|b| score < b.2) {
+                best = Some((j, tau, score));
+            }
+        }
+    }
+    best.map(|(j, tau, score)| (j, tau, (score / 2.0).sqrt()))
+}
+
+/// The DMD pixel (u, v) that lights the point at inverse depth `s` (1 / camera z)
+/// on the camera ray `(x, y, 1)`; `None` behind the projector.
+fn dmd_at(
+    camera_to_projector: &Pose,
+    projector: &ProjectorModel,
+    ray: &[f64; 2],
+    s: f64,
+) -> Option<[f64; 2]> {
+    let z = 1.0 / s;
+    let d = camera_to_projector.apply(&Point3::new(ray[0] * z, ray[1] * z, z));
+    if d.z <= 0.0 {
+        return None;
+    }
+    let p = projector.normalised_to_pixel(d.x / d.z, d.y / d.z);
+    Some([p.x, p.y])
+}

@@ -1,0 +1,400 @@
+//! The analytic multi-carrier demultiplexer: one colour long exposure -> each
+//! pattern's fringe `B_m cos(phi_m)` as wrapped phase and modulation.
+//!
+//! Three steps, each a switch for the ablations:
+//! 1. colour-crosstalk removal: the camera's channels are a 3x3 mix of the
+//!    three LEDs; its inverse gives each LED's light alone;
+//! 2. zero-order removal: each LED's sum of backgrounds `sum A_m` is its low
+//!    band (a Gaussian below every carrier), subtracted;
+//! 3. per pattern, demodulation by its carrier and a low-pass window. The
+//!    carrier is known from the plan and the calibration: the phase the pattern
+//!    would have on a reference plane (`reference` demodulation, which follows
+//!    the perspective chirp), or that phase's mean gradient (a linear carrier,
+//!    FTP's). The window is an anisotropic Gaussian: narrow across the pattern's
+//!    fringes' neighbours (the other directions of its LED sit 18 deg away on
+//!    the same ring), wide along its carrier (only the zero order and the
+//!    conjugates lie that way), sized so each interferer is left at `leak`.
+
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+use rustfft::num_complex::Complex32;
+
+use super::fft2::Fft2;
+use super::set::PatternSet;
+use super::HighSpeedError;
+
+/// How the exposure is demultiplexed (the stages of the ablation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DemuxOptions {
+    /// Camera channel <- LED mixing (column `c`: what LED `c` alone gives in R, G,
+    /// B); `None` takes each channel as its LED (no crosstalk removal).
+    pub crosstalk: Option<Matrix3<f64>>,
+    /// Subtract each LED's zero order before demodulating.
+    pub zero_order_removal: bool,
+    /// Demodulate by the reference plane's phase map (true) or by its mean
+    /// gradient, a linear carrier (false, FTP's way).
+    pub reference_demodulation: bool,
+    /// Largest share of an interfering carrier the window lets through.
+    pub leak: f64,
+}
+
+impl Default for DemuxOptions {
+    fn default() -> Self {
+        Self {
+            crosstalk: None,
+            zero_order_removal: true,
+            reference_demodulation: true,
+            leak: 0.01,
+        }
+    }
+}
+
+/// Each pattern's window, in camera cycles per pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Window {
+    /// The pattern's mean carrier (fx, fy).
+    pub carrier: [f32; 2],
+    /// Standard deviation along the carrier.
+    pub sigma_along: f32,
+    /// Standard deviation across it.
+    pub sigma_across: f32,
+}
+
+/// One exposure, demultiplexed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Demultiplexed {
+    /// Per pattern, wrapped phase in (-pi, pi], row-major.
+    pub wrapped: Vec<Vec<f32>>,
+    /// Per pattern, modulation `B_m` (LED signal units).
+    pub modulation: Vec<Vec<f32>>,
+    /// Per LED, the zero order `sum_n A_n` (LED signal units).
+    pub zero_order: [Vec<f32>; 3],
+}
+
+/// The demultiplexer of one head's set at one image size.
+pub struct Demultiplexer {
+    fft: Fft2,
+    /// Per pixel, the DMD position (u, v) of the reference plane.
+    reference_dmd: Vec<[f64; 2]>,
+    frequencies: Vec<[f64; 2]>,
+    colours: Vec<usize>,
+    windows: Vec<Window>,
+    options: DemuxOptions,
+}
+
+impl Demultiplexer {
+    /// For `set` on a camera of `width` x `height` whose pixel `i` sees DMD position
+    /// `reference_dmd[i]` on the reference plane.
+    pub fn new(
+        set: &PatternSet,
+        width: usize,
+        height: usize,
+        reference_dmd: Vec<[f64; 2]>,
+        options: DemuxOptions,
+    ) -> Result<Self, HighSpeedError> {
+        if reference_dmd.len() != width * height || width < 8 || height < 8 {
+            return Err(HighSpeedError::WrongSize {
+                what: "reference plane map".into(),
+                expected: (width, height),
+                got: (reference_dmd.len(), 1),
+            });
+        }
+        if let Some(m) = options.crosstalk {
+            if m.try_inverse().is_none() || m.iter().any(|v| !v.is_finite()) {
+                return Err(HighSpeedError::BadCrosstalk);
+            }
+        }
+        let frequencies: Vec<[f64; 2]> = set.patterns().iter().map(|p| p.frequency).collect();
+        let colours: Vec<usize> = set.patterns().iter().map(|p| p.colour).collect();
+        let carriers: Vec<[f32; 2]> = frequencies
+            .iter()
+            .map(|g| mean_carrier(&reference_dmd, width, height, g))
+            .collect();
+        let windows = (0..carriers.len())
+            .map(|m| window(m, &carriers, &colours, options.leak))
+            .collect();
+        Ok(Self {
+            fft: Fft2::new(width, height),
+            reference_dmd,
+            frequencies,
+            colours,
+            windows,
+            options,
+        })
+    }
+
+    /// Each pattern's window.
+    pub fn windows(&self) -> &[Window] {
+        &self.windows
+    }
+
+    /// Splits one exposure (camera channels R, G, B, row-major, same size as
+    /// the demultiplexer) into the patterns' wrapped phases and modulations.
+    pub fn demultiplex(&self, channels: [&[f32]; 3]) -> Demultiplexed {
+        let leds = unmix(channels, self.options.crosstalk);
+        let min_carrier = self
+            .windows
+            .iter()
+            .map(|w| w.carrier[0].hypot(w.carrier[1]))
+            .fold(f32::INFINITY, f32::min);
+        let zero_order: Vec<Vec<f32>> = leds
+            .par_iter()
+            .map(|s| self.low_band(s, min_carrier / 4.0))
+            .collect();
+        let signals: Vec<Vec<f32>> = if self.options.zero_order_removal {
+            leds.iter()
+                .zip(&zero_order)
+                .map(|(s, z)| s.iter().zip(z).map(|(a, b)| a - b).collect())
+                .collect()
+        } else {
+            leds.to_vec()
+        };
+        let (wrapped, modulation): (Vec<_>, Vec<_>) = (0..self.windows.len())
+            .into_par_iter()
+            .map(|m| self.demodulate(&signals[self.colours[m]], m))
+            .unzip();
+        let [r, g, b]: [Vec<f32>; 3] = zero_order.try_into().expect("three LEDs");
+        Demultiplexed {
+            wrapped,
+            modulation,
+            zero_order: [r, g, b],
+        }
+    }
+
+    /// The band below `sigma` cycles per pixel (a Gaussian at DC).
+    fn low_band(&self, signal: &[f32], sigma: f32) -> Vec<f32> {
+        let (w, h) = self.fft.size();
+        let mut image: Vec<Complex32> = signal.iter().map(|&v| Complex32::new(v, 0.0)).collect();
+        let mut spectrum = vec![Complex32::default(); w * h];
+        self.fft.forward(&mut image, &mut spectrum);
+        let k = -0.5 / (sigma * sigma);
+        for (kx, column) in spectrum.chunks_mut(h).enumerate() {
+            let fx = Fft2::frequency(kx, w);
+            for (ky, z) in column.iter_mut().enumerate() {
+                let fy = Fft2::frequency(ky, h);
+                *z *= (k * (fx * fx + fy * fy)).exp();
+            }
+        }
+        self.fft.inverse(&mut spectrum, &mut image);
+        image.iter().map(|z| z.re).collect()
+    }
+
+    /// Pattern `m` out of its LED's signal: (wrapped phase, modulation).
+    fn demodulate(&self, signal: &[f32], m: usize) -> (Vec<f32>, Vec<f32>) {
+        let (w, h) = self.fft.size();
+        let carrier = self.carrier_cycles(m);
+        let mut image: Vec<Complex32> = signal
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let phase = carrier(i);
+                if !(phase.is_finite() && v.is_finite()) {
+                    return Complex32::default();
+                }
+                let (s, c) = phase.sin_cos();
+                Complex32::new(v * c, -v * s)
+            })
+            .collect();
+        let mut spectrum = vec![Complex32::default(); w * h];
+        self.fft.forward(&mut image, &mut spectrum);
+        let win = &self.windows[m];
+        let n = win.carrier[0].hypot(win.carrier[1]).max(f32::EPSILON);
+        let (ax, ay) = (win.carrier[0] / n, win.carrier[1] / n);
+        let (ka, kc) = (
+            -0.5 / (win.sigma_along * win.sigma_along),
+            -0.5 / (win.sigma_across * win.sigma_across),
+        );
+        for (kx, column) in spectrum.chunks_mut(h).enumerate() {
+            let fx = Fft2::frequency(kx, w);
+            for (ky, z) in column.iter_mut().enumerate() {
+                let fy = Fft2::frequency(ky, h);
+                let along = fx * ax + fy * ay;
+                let across = -fx * ay + fy * ax;
+                *z *= (ka * along * along + kc * across * across).exp();
+            }
+        }
+        self.fft.inverse(&mut spectrum, &mut image);
+        let mut phase = Vec::with_capacity(w * h);
+        let mut modulation = Vec::with_capacity(w * h);
+        for (i, z) in image.iter().enumerate() {
+            phase.push(wrap(carrier(i) + z.arg()));
+            modulation.push(2.0 * z.norm());
+        }
+        (phase, modulation)
+    }
+
+    /// Pattern `m`'s carrier phase at pixel `i` (radians, reduced mod 2 pi in f64
+    /// so f32 keeps its precision).
+    fn carrier_cycles(&self, m: usize) -> impl Fn(usize) -> f32 + '_ {
+        let g = self.frequencies[m];
+        let win = self.windows[m];
+        let (w, _) = self.fft.size();
+        let reference = self.options.reference_demodulation;
+        move |i| {
+            let cycles = if reference {
+                let p = self.reference_dmd[i];
+                g[0] * p[0] + g[1] * p[1]
+            } else {
+                f64::from(win.carrier[0]) * (i % w) as f64
+                    + f64::from(win.carrier[1]) * (i / w) as f64
+            };
+            (std::f64::consts::TAU * (cycles - cycles.floor())) as f32
+        }
+    }
+}
+
+/// Wraps into (-pi, pi].
+fn wrap(a: f32) -> f32 {
+    let t = std::f32::consts::TAU;
+    let r = a - t * (a / t).round();
+    if r <= -std::f32::consts::PI {
+        r + t
+    } else {
+        r
+    }
+}
+
+/// The LEDs' light from the camera channels.
+fn unmix(channels: [&[f32]; 3], crosstalk: Option<Matrix3<f64>>) -> [Vec<f32>; 3] {
+    let Some(inv) = crosstalk.and_then(|m| m.try_inverse()) else {
+        return channels.map(|c| c.to_vec());
+    };
+    let inv = inv.cast::<f32>();
+    let n = channels[0].len();
+    let mut out = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+    for i in 0..n {
+        let led = inv * Vector3::new(channels[0][i], channels[1][i], channels[2][i]);
+        for c in 0..3 {
+            out[c][i] = led[c];
+        }
+    }
+    out
+}
+
+/// The mean gradient of `g . p(x)` over the image, cycles per camera pixel.
+fn mean_carrier(reference: &[[f64; 2]], width: usize, height: usize, g: &[f64; 2]) -> [f32; 2] {
+    let cycles = |x: usize, y: usize| {
+        let p = reference[y * width + x];
+        g[0] * p[0] + g[1] * p[1]
+    };
+    let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
+    let step = (width.min(height) / 32).max(1);
+    for y in (0..height - 1).step_by(step) {
+        for x in (0..width - 1).step_by(step) {
+            let (c, cx, cy) = (cycles(x, y), cycles(x + 1, y), cycles(x, y + 1));
+            if c.is_finite() && cx.is_finite() && cy.is_finite() {
+                sx += cx - c;
+                sy += cy - c;
+                n += 1;
+            }
+        }
+    }
+    let n = n.max(1) as f64;
+    [(sx / n) as f32, (sy / n) as f32]
+}
+
+/// Pattern `m`'s window: along its carrier a quarter of the carrier (the zero order
+/// lies at the carrier's length), across it as wide as every other carrier of its
+/// LED (and every conjugate) allows at `leak`.
+fn window(m: usize, carriers: &[[f32; 2]], colours: &[usize], leak: f64) -> Window {
+    let f = carriers[m];
+    let n = f[0].hypot(f[1]).max(1e-6);
+    let (ax, ay) = (f[0] / n, f[1] / n);
+    let sigma_along = n / 4.0;
+    let budget = 2.0 * (1.0 / leak.clamp(1e-9, 0.5)).ln() as f32;
+    let mut sigma_across = sigma_along;
+    for (j, c) in carriers.iter().enumerate() {
+        if j == m || colours[j] != colours[m] {
+            continue;
+        }
+        for sign in [1.0f32, -1.0] {
+            let (dx, dy) = (sign * c[0] - f[0], sign * c[1] - f[1]);
+            let along = dx * ax + dy * ay;
+            let across = (-dx * ay + dy * ax).abs();
+            let left = budget - (along / sigma_along).powi(2);
+            if left > 0.0 {
+                sigma_across = sigma_across.min(across / left.sqrt());
+            }
+        }
+    }
+    Window {
+        carrier: f,
+        sigma_along,
+        sigma_across: sigma_across.max(1e-4),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fronto-parallel plane seen 1:1 (DMD = camera pixel, shifted).
+    fn identity_reference(w: usize, h: usize) -> Vec<[f64; 2]> {
+        (0..w * h)
+            .map(|i| [(i % w) as f64 + 100.0, (i / w) as f64 + 50.0])
+            .collect()
+    }
+
+    #[test]
+    fn eight_directions_of_one_led_come_apart() {
+        let set = PatternSet::seed001((1280, 800)).unwrap();
+        let (w, h) = (160, 128);
+        let reference = identity_reference(w, h);
+        let demux =
+            Demultiplexer::new(&set, w, h, reference.clone(), DemuxOptions::default()).unwrap();
+        // Each LED's 8 patterns summed, each with its own smooth phase offset
+        // (a surface off the reference plane) and albedo 0.7.
+        let offset =
+            |m: usize, x: f64, y: f64| 0.3 * (m as f64 + 1.0).sqrt() * (x / 70.0 + y / 90.0);
+        let mut channels = vec![vec![0.0f32; w * h]; 3];
+        for p in set.patterns() {
+            for i in 0..w * h {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                let q = reference[i];
+                let phase = PatternSet::phase_at(p, q[0], q[1]) + offset(p.index, x, y);
+                channels[p.colour][i] += (0.7 * (0.5 + 0.5 * phase.cos())) as f32;
+            }
+        }
+        let out = demux.demultiplex([&channels[0], &channels[1], &channels[2]]);
+        for p in set.patterns() {
+            let mut err = Vec::new();
+            for y in 24..h - 24 {
+                for x in 24..w - 24 {
+                    let i = y * w + x;
+                    let q = reference[i];
+                    let truth =
+                        PatternSet::phase_at(p, q[0], q[1]) + offset(p.index, x as f64, y as f64);
+                    err.push(wrap((f64::from(out.wrapped[p.index][i]) - truth) as f32).abs());
+                    assert!(
+                        (out.modulation[p.index][i] - 0.35).abs() < 0.05,
+                        "{}",
+                        out.modulation[p.index][i]
+                    );
+                }
+            }
+            let mae = err.iter().sum::<f32>() / err.len() as f32;
+            assert!(mae < 0.02, "pattern {}: MAE {mae} rad", p.index);
+        }
+        assert!((out.zero_order[1][64 * w + 80] - 8.0 * 0.35).abs() < 0.05);
+    }
+
+    #[test]
+    fn crosstalk_is_undone_and_a_singular_matrix_refused() {
+        let m = Matrix3::new(0.9, 0.12, 0.03, 0.1, 0.85, 0.1, 0.03, 0.15, 0.88);
+        let leds = [0.2f64, 0.5, 0.9];
+        let ch = m * Vector3::from(leds);
+        let out = unmix([&[ch[0] as f32], &[ch[1] as f32], &[ch[2] as f32]], Some(m));
+        for c in 0..3 {
+            assert!((f64::from(out[c][0]) - leds[c]).abs() < 1e-5);
+        }
+        let set = PatternSet::seed001((1280, 800)).unwrap();
+        let options = DemuxOptions {
+            crosstalk: Some(Matrix3::zeros()),
+            ..DemuxOptions::default()
+        };
+        assert!(matches!(
+            Demultiplexer::new(&set, 16, 16, identity_reference(16, 16), options),
+            Err(HighSpeedError::BadCrosstalk)
+        ));
+    }
+}

@@ -1,0 +1,73 @@
+//! High-speed 3D from one colour long exposure (seed 001, TFCMFPP): the DMD shows
+//! 24 binary fringes (8 directions x R, G, B LEDs) inside one camera exposure;
+//! the decoder recovers each pattern's fringe, its absolute phase and its depth,
+//! so one camera frame gives 24 depth maps, one per pattern instant.
+//!
+//! - [`set`]: the pattern set (frequencies, LEDs, projection order, DMD frames);
+//! - [`demux`]: the analytic multi-carrier demultiplexer (crosstalk and zero-order
+//!   removal, carrier demodulation with windows sized from the carriers);
+//! - [`decode`]: PDM unwrapping along each pixel's epipolar segment and per-instant
+//!   depth;
+//! - [`fft2`]: the 2-D FFT the demultiplexer filters with.
+//!
+//! The seed's three networks (zero-order/crosstalk removal, spatial-frequency
+//! decomposition, direction-gated experts) are not built yet: this is the
+//! analytic decoder they are to be measured against.
+
+pub mod crosstalk;
+pub mod decode;
+pub mod demux;
+pub mod fft2;
+pub mod set;
+
+pub use crosstalk::crosstalk_from_flats;
+pub use decode::{pdm_along, Decoded, Decoder, DecoderConfig, InstantMap};
+pub use demux::{Demultiplexed, Demultiplexer, DemuxOptions, Window};
+pub use set::{PatternSet, SetPattern};
+
+/// What can go wrong decoding a high-speed exposure.
+#[derive(Debug, thiserror::Error)]
+pub enum HighSpeedError {
+    /// The pattern set cannot be used (periods, DMD size).
+    #[error("high-speed pattern set: {why}")]
+    BadPatternSet {
+        /// Why.
+        why: String,
+    },
+    /// A decoder setting is out of range.
+    #[error("high-speed decoder: {why}")]
+    BadConfig {
+        /// Why.
+        why: String,
+    },
+    /// An image of the wrong size.
+    #[error("{what}: expected {}x{} pixels, got {}x{}", expected.0, expected.1, got.0, got.1)]
+    WrongSize {
+        /// Which image.
+        what: String,
+        /// (width, height) expected.
+        expected: (usize, usize),
+        /// (width, height) given.
+        got: (usize, usize),
+    },
+    /// An exposure has a channel count other than three.
+    #[error("colour exposure: expected 3 channels (R, G, B), got {got}")]
+    NotColour {
+        /// Channels given.
+        got: usize,
+    },
+    /// NaN or infinite pixel values.
+    #[error("colour exposure holds NaN or infinite values")]
+    NotFinite,
+    /// Too many pixels clipped to decode the exposure.
+    #[error("colour exposure saturated: {:.1} % of pixels clip in some channel (limit {:.1} %); shorten the exposure or dim the LEDs", share * 100.0, limit * 100.0)]
+    Saturated {
+        /// Share of saturated pixels.
+        share: f64,
+        /// The decoder's limit.
+        limit: f64,
+    },
+    /// The colour crosstalk matrix cannot be inverted.
+    #[error("colour crosstalk matrix is singular or not finite")]
+    BadCrosstalk,
+}
