@@ -30,6 +30,8 @@ pub mod clouds;
 pub mod exposure;
 mod fuse;
 mod fuse_views;
+pub mod high_speed;
+pub mod high_speed_output;
 pub mod measure;
 pub mod metrics;
 pub mod output;
@@ -223,7 +225,7 @@ pub enum ScanError {
     },
     /// A camera delivered another number of flat-field frames than the
     /// plan's three.
-    #[error("head {head}: {frames} flat-field frames, expected 3")]
+    #[error("head {head}: {frames} flat-field frames, not as many as the plan exposed")]
     FlatFields {
         /// Head name.
         head: &'static str,
@@ -307,6 +309,17 @@ pub enum ScanError {
     /// The ground truth's per-pixel arrays do not fit its images.
     #[error(transparent)]
     TruthSize(#[from] truth::TruthSizeError),
+    /// The high-speed mode runs one head (seed 001's rig).
+    #[error(
+        "mode high-speed runs one head (one colour camera, one DMD); the calibration has {heads}"
+    )]
+    HighSpeedNeedsOneHead {
+        /// Heads in the calibration.
+        heads: usize,
+    },
+    /// Setting up or decoding the high-speed exposures failed.
+    #[error("high-speed decoding")]
+    HighSpeed(#[from] crate::highspeed::HighSpeedError),
 }
 
 /// A step of progress, for bars and logs.

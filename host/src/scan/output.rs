@@ -29,6 +29,14 @@ pub enum OutputError {
         /// Why.
         source: std::io::Error,
     },
+    /// A file could not be written (the run's files are removed again).
+    #[error("writing {path}: {source}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
     /// An earlier run's output could not be removed (or is not a regular file).
     #[error("clearing the earlier run's outputs")]
     Stale(#[from] OutputSetError),

@@ -19,6 +19,7 @@ pub mod board;
 pub mod calibration;
 pub mod calibration_source;
 pub mod dlpc;
+pub mod high_speed;
 pub mod rig;
 pub mod scan;
 pub mod truth;

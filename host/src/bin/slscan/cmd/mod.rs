@@ -17,6 +17,7 @@ pub mod reconstruct;
 pub mod reconstruct_stereo;
 pub mod register;
 pub mod scan;
+pub mod scan_high_speed;
 pub mod transcript;
 
 /// The error of a `--sim` option in a build without the simulator.

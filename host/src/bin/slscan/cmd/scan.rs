@@ -48,6 +48,9 @@ pub struct Args {
     /// Seed of device jitter and sensor noise (--sim).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// --mode high-speed: camera frames (each gives 24 depth maps).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=16))]
+    frames: u32,
     /// Fringe periods, projector pixels, finest first (4 steps each);
     /// default: three pitches of S + sqrt(S) + 1, S and S - sqrt(S) fringes
     /// over the DMD width (S = 64: 73 / 64 / 56), and for the simultaneous
@@ -288,6 +291,8 @@ enum ModeArg {
     Simultaneous,
     /// Both at once, N = 8, head A on temporal bin 1, head B on bin 2, demultiplexed per pixel.
     SimultaneousMultiplexed,
+    /// Head A only, seed 001: 24 binary patterns (8 directions x R, G, B) in one colour exposure per camera frame, 24 depth maps per frame, each at its pattern's instant.
+    HighSpeed,
 }
 
 /// Runs `slscan scan`.
@@ -296,6 +301,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ModeArg::Sequential => Mode::Sequential,
         ModeArg::Simultaneous => Mode::Simultaneous,
         ModeArg::SimultaneousMultiplexed => Mode::SimultaneousMultiplexed,
+        ModeArg::HighSpeed => {
+            return super::scan_high_speed::run(&super::scan_high_speed::Options {
+                sim: args.sim,
+                scene: &args.scene,
+                out: &args.out,
+                camera_px: (args.width, args.height),
+                seed: args.seed,
+                frames: args.frames,
+            })
+        }
     };
     let mut bars = Bars::new();
     let mut on_progress = |p: Progress| bars.on(p);
@@ -870,20 +885,20 @@ fn print_calibration_vs_truth(report: &ScanReport) {
 }
 
 /// One progress bar per stage.
-struct Bars {
+pub(super) struct Bars {
     style: ProgressStyle,
     bar: Option<ProgressBar>,
 }
 
 impl Bars {
-    fn new() -> Self {
+    pub(super) fn new() -> Self {
         let style = ProgressStyle::with_template("{prefix:>18} [{bar:30}] {pos}/{len} {elapsed}")
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> ");
         Bars { style, bar: None }
     }
 
-    fn on(&mut self, p: Progress) {
+    pub(super) fn on(&mut self, p: Progress) {
         match p {
             Progress::Stage { name, total } => {
                 self.bar = Some(

@@ -1,0 +1,428 @@
+//! High-speed scan (seed 001): one head; per camera frame the DMD shows the 24
+//! binary patterns of a [`PatternSet`] (8 directions x R, G, B LEDs, 200 us
+//! each) inside one 4.8 ms colour exposure, and the host decodes 24 depth maps,
+//! each at its own pattern's instant on the board clock: 24 3D frames per
+//! camera frame (208 Hz camera -> 5 kHz 3D).
+//!
+//! ```text
+//! dark + LED flats (R, G, B alone, one frame each) ──crosstalk_from_flats──> 3x3 mixing
+//! 24 binary patterns ──load_coloured_sequence──> DMD table
+//! protocol's multiplexed_24_at_5khz(frames) ──Board::run_plan──> board clock
+//! ──Camera::take_colour_frames──> one colour exposure per frame
+//! ──highspeed::Decoder──> 24 x (absolute phase, depth) per frame
+//! ```
+//!
+//! Truth, when the caller has one (the twin), is asked for at each pattern's
+//! instant, so a moving surface is measured where it was when that pattern lit it.
+
+use std::time::Instant;
+
+use nalgebra::{Isometry3, Matrix3, Point3};
+
+use super::truth::{CameraTruth, TrueSphere};
+use super::{Progress, ScanError};
+use crate::calibration::RigCalibration;
+use crate::fit::fit_sphere;
+use crate::highspeed::{crosstalk_from_flats, Decoder, DecoderConfig, PatternSet, SetPattern};
+use crate::point_cloud::PointCloud;
+use crate::raster::Raster;
+use crate::rig::{require_clean, Board, Camera, Led, Projector};
+use protocol::plan::examples::{multiplexed_24_at_5khz, FAST_FRAME_NS};
+use protocol::{HeadSet, PatternSlot, ScanPlan};
+
+/// What a high-speed scan needs besides the rig and its calibration.
+#[derive(Clone, Debug)]
+pub struct HighSpeedConfig {
+    /// What is scanned, for the report.
+    pub scene: String,
+    /// Camera frames (each gives 24 instants).
+    pub frames: u32,
+    /// How each exposure is decoded.
+    pub decoder: DecoderConfig,
+}
+
+impl HighSpeedConfig {
+    /// Three camera frames, the default decoder.
+    pub fn new(scene: &str) -> Self {
+        Self {
+            scene: scene.to_string(),
+            frames: 3,
+            decoder: DecoderConfig::default(),
+        }
+    }
+}
+
+/// The truth at an instant (seconds on the board clock), if the caller has
+/// one: the camera's per-pixel truth and the spheres where they were then.
+pub type TruthAt<'a> = &'a dyn Fn(f64) -> Option<(CameraTruth, Vec<TrueSphere>)>;
+
+/// One pattern's instant of one camera frame.
+#[derive(Clone, Debug)]
+pub struct InstantResult {
+    /// Camera frame index.
+    pub frame: usize,
+    /// The pattern.
+    pub pattern: SetPattern,
+    /// Board-clock time of the middle of the pattern, seconds.
+    pub time_s: f64,
+    /// Depth (camera z), metres, NaN where not decoded.
+    pub depth_m: Raster<f32>,
+    /// The points, camera frame (= head A's frame).
+    pub cloud: PointCloud,
+    /// Figures against the truth at this instant.
+    pub truth: Option<InstantTruth>,
+}
+
+/// One instant against the truth at that instant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InstantTruth {
+    /// Object pixels (lit, not the wall) with a decoded depth, share of all.
+    pub coverage: f64,
+    /// Depth RMSE over decoded object pixels, metres.
+    pub depth_rmse_m: f64,
+    /// Median absolute depth error, metres.
+    pub depth_median_m: f64,
+    /// Decoded object pixels more than 1 mm off.
+    pub over_1mm: usize,
+    /// Per true sphere seen with enough points: (name, points, fit RMSE m,
+    /// radius error m, centre error m).
+    pub spheres: Vec<InstantSphere>,
+}
+
+/// One sphere fitted at one instant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InstantSphere {
+    /// The sphere's name in the truth.
+    pub name: String,
+    /// Points fitted.
+    pub points: usize,
+    /// RMS of the radial residuals, metres.
+    pub fit_rmse_m: f64,
+    /// Fitted minus true radius, metres.
+    pub radius_error_m: f64,
+    /// Fitted centre minus the true one at this instant (length), metres.
+    pub centre_error_m: f64,
+    /// The fitted centre, camera frame.
+    pub centre_m: [f64; 3],
+}
+
+/// One camera frame.
+#[derive(Clone, Debug)]
+pub struct FrameResult {
+    /// The colour exposure (R, G, B, full scale 1), for the pictures.
+    pub exposure: [Raster<f32>; 3],
+    /// Seconds decoding it took.
+    pub decode_s: f64,
+    /// Saturated pixels left undecoded.
+    pub saturated: usize,
+    /// Its 24 instants in projection order.
+    pub instants: Vec<InstantResult>,
+}
+
+/// A finished high-speed scan, in memory.
+#[derive(Clone, Debug)]
+pub struct HighSpeedResult {
+    /// What was scanned.
+    pub scene: String,
+    /// The measured channel <- LED crosstalk.
+    pub crosstalk: Matrix3<f64>,
+    /// Patterns per second (the 3D rate).
+    pub pattern_rate_hz: f64,
+    /// Camera frames per second.
+    pub camera_rate_hz: f64,
+    /// The frames.
+    pub frames: Vec<FrameResult>,
+    /// Whether figures are against the twin's truth calibration.
+    pub calibration_is_true: bool,
+}
+
+/// Minimum points on a sphere for a fit at one instant.
+pub const MIN_SPHERE_POINTS: usize = 300;
+
+/// Runs a high-speed scan on head A of `rig`.
+pub fn run_high_speed<R: Board + Projector + Camera>(
+    rig: &mut R,
+    config: &HighSpeedConfig,
+    calibration: &RigCalibration,
+    truth_at: Option<TruthAt<'_>>,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<HighSpeedResult, ScanError> {
+    if calibration.heads.len() != 1 {
+        return Err(ScanError::HighSpeedNeedsOneHead {
+            heads: calibration.heads.len(),
+        });
+    }
+    let head = &calibration.heads[0];
+    let dmd = rig.dmd_size_px(0)?;
+    let set = PatternSet::seed001(dmd)?;
+    let decoder = Decoder::new(set.clone(), head, config.decoder)?;
+    let clock_hz = rig
+        .limits()
+        .map_or(170_000_000.0, |l| f64::from(l.timer_clock_hz));
+
+    progress(Progress::Stage {
+        name: "LED flats",
+        total: 1,
+    });
+    let white = Raster::filled(dmd.0 as usize, dmd.1 as usize, 1.0f32);
+    let black = Raster::filled(dmd.0 as usize, dmd.1 as usize, 0.0f32);
+    let leds: [Led; 4] = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    rig.load_coloured_sequence(0, &[black, white.clone(), white.clone(), white], &leds)?;
+    require_clean(&rig.run_plan(&led_flats_plan())?)?;
+    let flats = rig.take_colour_frames(0)?;
+    if flats.len() != 4 {
+        return Err(ScanError::FlatFields {
+            head: "A",
+            frames: flats.len(),
+        });
+    }
+    // Each LED's flat less the dark frame: ambient light is white and would
+    // read as crosstalk.
+    let lit: Vec<[Vec<f32>; 3]> = flats[1..]
+        .iter()
+        .map(|flat| {
+            [0, 1, 2].map(|c| {
+                flat[c]
+                    .data
+                    .iter()
+                    .zip(&flats[0][c].data)
+                    .map(|(v, d)| {
+                        if *v >= config.decoder.saturation_level {
+                            *v
+                        } else {
+                            v - d
+                        }
+                    })
+                    .collect()
+            })
+        })
+        .collect();
+    let view = |l: usize| [&lit[l][0][..], &lit[l][1][..], &lit[l][2][..]];
+    let crosstalk =
+        crosstalk_from_flats([view(0), view(1), view(2)], config.decoder.saturation_level)?;
+    progress(Progress::Done);
+
+    // The flats' crosstalk goes into the decoder that reads the fringes.
+    let mut decoder_config = config.decoder;
+    decoder_config.demux.crosstalk = Some(crosstalk);
+    let decoder = if decoder_config == config.decoder {
+        decoder
+    } else {
+        Decoder::new(set.clone(), head, decoder_config)?
+    };
+
+    progress(Progress::Stage {
+        name: "capture",
+        total: 1,
+    });
+    rig.load_coloured_sequence(0, &set.binary_frames(), &set.leds())?;
+    let plan = multiplexed_24_at_5khz(config.frames.max(1));
+    let outcome = rig.run_plan(&plan)?;
+    require_clean(&outcome)?;
+    let exposures = rig.take_colour_frames(0)?;
+    progress(Progress::Done);
+    let times = instant_times_s(&plan, outcome.start_tick as f64 / clock_hz);
+
+    progress(Progress::Stage {
+        name: "decode",
+        total: exposures.len() as u64,
+    });
+    let mut frames = Vec::with_capacity(exposures.len());
+    for (f, exposure) in exposures.into_iter().enumerate() {
+        let started = Instant::now();
+        let decoded = decoder.decode([&exposure[0], &exposure[1], &exposure[2]])?;
+        let decode_s = started.elapsed().as_secs_f64();
+        let (w, h) = decoder.size();
+        let instants = decoded
+            .instants
+            .into_iter()
+            .map(|instant| {
+                let time_s = times
+                    .get(f * set.patterns().len() + instant.pattern.index)
+                    .copied()
+                    .unwrap_or(f64::NAN);
+                let depth_m = Raster {
+                    width: w,
+                    height: h,
+                    data: instant.depth_m,
+                };
+                let cloud = cloud_of(&decoder, &depth_m);
+                let truth = truth_at
+                    .and_then(|t| t(time_s))
+                    .map(|(truth, spheres)| measure_instant(&decoder, &depth_m, &truth, &spheres));
+                InstantResult {
+                    frame: f,
+                    pattern: instant.pattern,
+                    time_s,
+                    depth_m,
+                    cloud,
+                    truth,
+                }
+            })
+            .collect();
+        frames.push(FrameResult {
+            exposure,
+            decode_s,
+            saturated: decoded.saturated,
+            instants,
+        });
+        progress(Progress::Step);
+    }
+    progress(Progress::Done);
+    let slot_ns = plan
+        .slots
+        .first()
+        .map_or(f64::NAN, |s| f64::from(s.display_ns));
+    Ok(HighSpeedResult {
+        scene: config.scene.clone(),
+        crosstalk,
+        pattern_rate_hz: 1e9 / slot_ns,
+        camera_rate_hz: 1e9 / f64::from(FAST_FRAME_NS),
+        frames,
+        calibration_is_true: false,
+    })
+}
+
+/// Four frames of the 208 Hz camera on the high-speed wiring: a dark one
+/// (pattern 0, no LED) and each LED's white flat (patterns 1, 2, 3), 1.5 ms
+/// each, so an LED alone fills the sensor about as one channel of the
+/// multiplexed exposure does.
+pub fn led_flats_plan() -> ScanPlan {
+    let base = multiplexed_24_at_5khz(1);
+    let mut plan = ScanPlan::new(&base.heads, 1, 4 * FAST_FRAME_NS, base.margin_ns)
+        .expect("the high-speed wiring is valid");
+    let first = base.exposures[0];
+    for k in 0..4u32 {
+        let slot = PatternSlot {
+            pattern_index: k as u16,
+            offset_ns: first.start_ns,
+            display_ns: 1_500_000,
+        };
+        plan.push_exposure(
+            HeadSet::A,
+            first.start_ns + k * FAST_FRAME_NS,
+            1_600_000,
+            &[slot],
+        )
+        .expect("four short exposures fit four frames");
+    }
+    plan
+}
+
+/// Board-clock time (s) of the middle of every slot, in display order over
+/// all cycles, for a plan started at `start_s`.
+pub fn instant_times_s(plan: &ScanPlan, start_s: f64) -> Vec<f64> {
+    let period_s = f64::from(plan.repeat_period_ns) * 1e-9;
+    (0..plan.repeat_count)
+        .flat_map(|cycle| {
+            plan.exposures().flat_map(move |e| {
+                let start_ns = f64::from(e.entry.start_ns);
+                e.slots.iter().map(move |s| {
+                    start_s
+                        + f64::from(cycle) * period_s
+                        + (start_ns + f64::from(s.offset_ns) + 0.5 * f64::from(s.display_ns)) * 1e-9
+                })
+            })
+        })
+        .collect()
+}
+
+/// The decoded points of one instant, camera frame.
+fn cloud_of(decoder: &Decoder, depth: &Raster<f32>) -> PointCloud {
+    let points_m = depth
+        .data
+        .iter()
+        .enumerate()
+        .filter(|(_, z)| z.is_finite())
+        .map(|(i, &z)| decoder.point(i, z))
+        .collect();
+    PointCloud {
+        points_m,
+        ..PointCloud::default()
+    }
+}
+
+/// One instant's depth against the truth at that instant (both in the camera
+/// frame: the truth's points carried by its camera pose).
+fn measure_instant(
+    decoder: &Decoder,
+    depth: &Raster<f32>,
+    truth: &CameraTruth,
+    spheres: &[TrueSphere],
+) -> InstantTruth {
+    let cam: &Isometry3<f64> = &truth.camera_from_world;
+    let mut errors = Vec::new();
+    let mut object = 0usize;
+    for (i, &z) in depth.data.iter().enumerate() {
+        if !truth.own_object.get(i).copied().unwrap_or(false) {
+            continue;
+        }
+        object += 1;
+        if !z.is_finite() {
+            continue;
+        }
+        let p = truth.point_m[i];
+        let true_z = (cam * Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))).z;
+        errors.push(f64::from(z) - true_z);
+    }
+    let n = errors.len().max(1) as f64;
+    let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+    let mut abs: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
+    abs.sort_by(f64::total_cmp);
+    let median = abs.get(abs.len() / 2).copied().unwrap_or(f64::NAN);
+    let spheres = spheres
+        .iter()
+        .filter_map(|s| {
+            let points: Vec<Point3<f64>> = depth
+                .data
+                .iter()
+                .enumerate()
+                .filter(|(i, z)| z.is_finite() && truth.object.get(*i) == Some(&s.object))
+                .map(|(i, &z)| Point3::from(decoder.point(i, z).map(f64::from)))
+                .collect();
+            if points.len() < MIN_SPHERE_POINTS {
+                return None;
+            }
+            let fit = fit_sphere(&points)?;
+            let centre_true = cam * Point3::from(s.centre_m);
+            Some(InstantSphere {
+                name: s.name.clone(),
+                points: points.len(),
+                fit_rmse_m: fit.rms_m,
+                radius_error_m: fit.radius_m - s.radius_m,
+                centre_error_m: (fit.centre_m - centre_true).norm(),
+                centre_m: fit.centre_m.coords.into(),
+            })
+        })
+        .collect();
+    InstantTruth {
+        coverage: errors.len() as f64 / object.max(1) as f64,
+        depth_rmse_m: if errors.is_empty() { f64::NAN } else { rmse },
+        depth_median_m: median,
+        over_1mm: abs.iter().filter(|&&e| e > 1e-3).count(),
+        spheres,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn instants_are_the_slots_middles_cycle_after_cycle() {
+        let plan = multiplexed_24_at_5khz(2);
+        let t = instant_times_s(&plan, 1.0);
+        assert_eq!(t.len(), 48);
+        // 2 us lead + 2 us offset + 100 us half slot.
+        assert!((t[0] - (1.0 + 104e-6)).abs() < 1e-12, "{}", t[0]);
+        assert!((t[1] - t[0] - 200e-6).abs() < 1e-12);
+        assert!((t[24] - t[0] - f64::from(FAST_FRAME_NS) * 1e-9).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_flats_plan_validates() {
+        let plan = led_flats_plan();
+        assert_eq!(plan.exposures.len(), 4);
+        assert_eq!(plan.slots.len(), 4);
+    }
+}

@@ -1,0 +1,111 @@
+//! A high-speed scan on the simulated rig: the twin scene's head A (a colour
+//! camera, a DMD with R, G, B LEDs) with the board on a pty, the product's own
+//! [`run_high_speed`], and the twin's truth asked for at each pattern's instant.
+
+use std::sync::Arc;
+
+use hil_sim::board::SimBoardConfig;
+use hil_sim::twin::scenes::{built_in, Detail};
+use hil_sim::twin::{SensorModel, TwinRig};
+
+use super::rig::{SimRig, SimRigConfig};
+use super::scan::{sim_board_limits, SimScanError};
+use super::truth::{camera_truth_at, spheres_at, twin_calibration};
+use crate::board::ClientConfig;
+use crate::scan::high_speed::{run_high_speed, HighSpeedConfig, HighSpeedResult};
+use crate::scan::Progress;
+
+/// A simulated high-speed scan.
+#[derive(Clone, Debug)]
+pub struct SimHighSpeedConfig {
+    /// The scan (its `scene` names the built-in twin scene).
+    pub scan: HighSpeedConfig,
+    /// Camera image size, pixels.
+    pub camera_px: (u32, u32),
+    /// DMD size, pixels.
+    pub projector_px: (u32, u32),
+    /// Seed of the camera's noise.
+    pub seed: u64,
+    /// Simulated board.
+    pub board: SimBoardConfig,
+    /// Timeouts of the board client.
+    pub client: ClientConfig,
+}
+
+impl SimHighSpeedConfig {
+    /// `scene` at 640x480 / 1280x800, seed 1.
+    pub fn new(scene: &str) -> Self {
+        Self {
+            scan: HighSpeedConfig::new(scene),
+            camera_px: (640, 480),
+            projector_px: (1280, 800),
+            seed: 1,
+            board: SimBoardConfig::default(),
+            client: ClientConfig {
+                attempt_timeout: std::time::Duration::from_secs(2),
+                attempts: 3,
+            },
+        }
+    }
+}
+
+/// The high-speed camera: 8-bit colour, its gain set so a white diffuser at
+/// the reference distance lit full-on for 1 ms fills 80 % of the well (one
+/// LED's eight patterns light a pixel for 0.8 ms on average, 1.6 ms at most).
+pub fn high_speed_sensor() -> SensorModel {
+    let mut sensor = SensorModel::colour8();
+    sensor.electrons_per_unit = 0.8 * sensor.full_well_e / 1.0e-3;
+    sensor
+}
+
+/// Runs a high-speed scan of `config.scan.scene`'s head A on the simulated
+/// rig with the twin's true calibration.
+pub fn run_sim_high_speed(
+    config: &SimHighSpeedConfig,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<HighSpeedResult, SimScanError> {
+    let detail = Detail {
+        camera: config.camera_px,
+        projector: config.projector_px,
+    };
+    let (scene, rig) = built_in(&config.scan.scene, &detail)?;
+    if rig.cameras.is_empty() || rig.projectors.is_empty() {
+        return Err(SimScanError::HeadCount {
+            scene: config.scan.scene.clone(),
+            cameras: rig.cameras.len(),
+            projectors: rig.projectors.len(),
+        });
+    }
+    let calibration = twin_calibration(&rig, 1);
+    let heads = rig.cameras.len().min(rig.projectors.len());
+    let twin = Arc::new(TwinRig::new(scene, rig)?);
+    progress(Progress::Stage {
+        name: "ray-cast camera",
+        total: 1,
+    });
+    twin.renderer(0)?;
+    progress(Progress::Done);
+    let mut sim = SimRig::start(
+        twin.clone(),
+        SimRigConfig {
+            board: config.board.clone(),
+            client: config.client,
+            sensor: high_speed_sensor(),
+            noise_seed: config.seed,
+            board_limits: sim_board_limits(None, heads),
+        },
+    )?;
+    let truth_at = |t: f64| {
+        let truth = camera_truth_at(&twin, 0, t).ok()?;
+        Some((truth, spheres_at(twin.scene(), t)))
+    };
+    let mut result = run_high_speed(
+        &mut sim,
+        &config.scan,
+        &calibration,
+        Some(&truth_at),
+        progress,
+    )?;
+    result.calibration_is_true = true;
+    Ok(result)
+}
