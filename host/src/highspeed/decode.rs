@@ -290,11 +290,18 @@ impl Decoder {
             if !good {
                 continue;
             }
-            let phases: [Vec<f64>; 3] = pats.map(|pat| {
-                dmd.iter()
-                    .map(|p| pat.frequency[0] * p[0] + pat.frequency[1] * p[1])
-                    .collect()
-            });
+            // On the stack: this runs for 8 directions of every pixel.
+            let mut buffers = [[f64::NAN; 64]; 3];
+            for (buffer, pat) in buffers.iter_mut().zip(&pats) {
+                for (b, p) in buffer.iter_mut().zip(dmd) {
+                    *b = pat.frequency[0] * p[0] + pat.frequency[1] * p[1];
+                }
+            }
+            let phases = [
+                &buffers[0][..j_count],
+                &buffers[1][..j_count],
+                &buffers[2][..j_count],
+            ];
             let Some((j, tau, rms)) = pdm_along(&phases, &wrapped) else {
                 continue;
             };
@@ -302,10 +309,10 @@ impl Decoder {
                 continue;
             }
             for (c, pat) in pats.iter().enumerate() {
-                let ph = &phases[c];
+                let ph = phases[c];
                 let predicted = ph[j] + tau * (ph[j + 1] - ph[j]);
                 let absolute = wrapped[c] + (predicted - wrapped[c]).round();
-                let Some(s) = self.solve_depth(pat, ph, absolute, &ray, s0, ds) else {
+                let Some(s) = self.solve_depth(pat, ph, dmd, absolute, &ray, s0, ds) else {
                     continue;
                 };
                 out[2 * pat.index] = (std::f64::consts::TAU * absolute) as f32;
@@ -315,12 +322,15 @@ impl Decoder {
     }
 
     /// The inverse depth where `pat`'s phase along the ray is `absolute` cycles:
-    /// the bracketing segment of the samples `ph`, then one Newton step on the
-    /// exact projection. `None` off the segment or the DMD.
+    /// the bracketing segment of the samples `ph` (at the DMD points `dmd`), then
+    /// one Newton step on the exact projection. `None` off the segment or the DMD
+    /// (judged on the segment's DMD points, a fraction of a pixel from exact).
+    #[allow(clippy::too_many_arguments)]
     fn solve_depth(
         &self,
         pat: &SetPattern,
         ph: &[f64],
+        dmd: &[[f64; 2]],
         absolute: f64,
         ray: &[f64; 2],
         s0: f64,
@@ -331,12 +341,15 @@ impl Decoder {
             a.is_finite() && b.is_finite() && (a - absolute) * (b - absolute) <= 0.0 && a != b
         })?;
         let slope = (ph[j + 1] - ph[j]) / ds;
-        let mut s = s0 + j as f64 * ds + (absolute - ph[j]) / slope;
+        let tau = (absolute - ph[j]) / (ph[j + 1] - ph[j]);
+        let mut s = s0 + j as f64 * ds + tau * ds;
         let p = dmd_at(&self.camera_to_projector, &self.projector, ray, s)?;
         s -= (pat.frequency[0] * p[0] + pat.frequency[1] * p[1] - absolute) / slope;
         let (w, h) = self.set.dmd_px();
-        let p = dmd_at(&self.camera_to_projector, &self.projector, ray, s)?;
-        let inside = p[0] >= -0.5 && p[1] >= -0.5 && p[0] < w as f64 - 0.5 && p[1] < h as f64 - 0.5;
+        let (a, b) = (dmd[j], dmd[j + 1]);
+        let u = a[0] + tau * (b[0] - a[0]);
+        let v = a[1] + tau * (b[1] - a[1]);
+        let inside = u >= -0.5 && v >= -0.5 && u < w as f64 - 0.5 && v < h as f64 - 0.5;
         (inside && s > 0.0).then_some(s)
     }
 }
@@ -346,7 +359,7 @@ impl Decoder {
 /// integer order of the colour with the most cycles gives a position (segment `j`,
 /// fraction `tau`); the position where the other two agree best wins. Returns
 /// (j, tau, RMS disagreement in cycles).
-pub fn pdm_along(phases: &[Vec<f64>; 3], wrapped: &[f64; 3]) -> Option<(usize, f64, f64)> {
+pub fn pdm_along(phases: &[&[f64]; 3], wrapped: &[f64; 3]) -> Option<(usize, f64, f64)> {
     let len = phases[0].len();
     let span = |c: usize| (phases[c][len - 1] - phases[c][0]).abs();
     let r = (0..3).max_by(|&a, &b| span(a).total_cmp(&span(b)))?;
