@@ -50,11 +50,12 @@ impl SimHighSpeedConfig {
 }
 
 /// The high-speed camera: 8-bit colour, its gain set so a white diffuser at
-/// the reference distance lit full-on for 1 ms fills 80 % of the well (one
-/// LED's eight patterns light a pixel for 0.8 ms on average, 1.6 ms at most).
+/// the reference distance lit full-on for 1.6 ms fills 80 % of the well: one
+/// LED's eight patterns light a pixel for 0.8 ms on average and 1.6 ms where
+/// all eight are on, so only brighter-than-white or nearer surfaces clip.
 pub fn high_speed_sensor() -> SensorModel {
     let mut sensor = SensorModel::colour8();
-    sensor.electrons_per_unit = 0.8 * sensor.full_well_e / 1.0e-3;
+    sensor.electrons_per_unit = 0.8 * sensor.full_well_e / 1.6e-3;
     sensor
 }
 
