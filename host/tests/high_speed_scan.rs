@@ -38,13 +38,18 @@ fn spheres_give_24_instants_200_us_apart_near_the_truth() {
     for i in instants {
         let t = i.truth.as_ref().expect("the twin has a truth");
         println!(
-            "pattern {:2} (direction {}, LED {}): coverage {:.3}, depth median {:.0} um, RMSE {:.0} um",
+            "pattern {:2} (direction {}, LED {}): coverage {:.3}, depth median {:.0} um, RMSE {:.0} um; \
+             interior ({} px) coverage {:.3}, median {:.0} um, RMSE {:.0} um",
             i.pattern.index,
             i.pattern.direction,
             i.pattern.colour,
             t.coverage,
             t.depth_median_m * 1e6,
-            t.depth_rmse_m * 1e6
+            t.depth_rmse_m * 1e6,
+            t.interior.pixels,
+            t.interior.coverage,
+            t.interior.depth_median_m * 1e6,
+            t.interior.depth_rmse_m * 1e6
         );
         assert!(t.coverage > 0.5, "coverage {}", t.coverage);
         medians.push(t.depth_median_m);

@@ -84,10 +84,31 @@ pub struct InstantTruth {
     pub depth_median_m: f64,
     /// Decoded object pixels more than 1 mm off.
     pub over_1mm: usize,
+    /// The same figures over the object's interior only: pixels at least
+    /// [`INTERIOR_MARGIN_PX`] from any other object (where the decoder's
+    /// windows see one surface).
+    pub interior: InteriorTruth,
     /// Per true sphere seen with enough points: (name, points, fit RMSE m,
     /// radius error m, centre error m).
     pub spheres: Vec<InstantSphere>,
 }
+
+/// Depth figures over an object's interior at one instant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InteriorTruth {
+    /// Interior object pixels.
+    pub pixels: usize,
+    /// Of them decoded, share.
+    pub coverage: f64,
+    /// Depth RMSE, metres (NaN: none decoded).
+    pub depth_rmse_m: f64,
+    /// Median absolute depth error, metres.
+    pub depth_median_m: f64,
+}
+
+/// How far from another object (or the background) a pixel is interior: the
+/// demultiplexer's windows are about this wide across a fringe (+-2 sigma).
+pub const INTERIOR_MARGIN_PX: usize = 10;
 
 /// One sphere fitted at one instant.
 #[derive(Clone, Debug, PartialEq)]
@@ -351,25 +372,30 @@ fn measure_instant(
     spheres: &[TrueSphere],
 ) -> InstantTruth {
     let cam: &Isometry3<f64> = &truth.camera_from_world;
+    let interior = interior_pixels(&truth.object, truth.width, INTERIOR_MARGIN_PX);
     let mut errors = Vec::new();
-    let mut object = 0usize;
+    let mut interior_errors = Vec::new();
+    let (mut object, mut interior_object) = (0usize, 0usize);
     for (i, &z) in depth.data.iter().enumerate() {
         if !truth.own_object.get(i).copied().unwrap_or(false) {
             continue;
         }
+        let inside = interior.get(i).copied().unwrap_or(false);
         object += 1;
+        interior_object += usize::from(inside);
         if !z.is_finite() {
             continue;
         }
         let p = truth.point_m[i];
         let true_z = (cam * Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))).z;
         errors.push(f64::from(z) - true_z);
+        if inside {
+            interior_errors.push(f64::from(z) - true_z);
+        }
     }
-    let n = errors.len().max(1) as f64;
-    let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
-    let mut abs: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
-    abs.sort_by(f64::total_cmp);
-    let median = abs.get(abs.len() / 2).copied().unwrap_or(f64::NAN);
+    let (rmse, median) = rmse_and_median(&errors);
+    let abs: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
+    let (interior_rmse, interior_median) = rmse_and_median(&interior_errors);
     let spheres = spheres
         .iter()
         .filter_map(|s| {
@@ -397,11 +423,77 @@ fn measure_instant(
         .collect();
     InstantTruth {
         coverage: errors.len() as f64 / object.max(1) as f64,
-        depth_rmse_m: if errors.is_empty() { f64::NAN } else { rmse },
+        depth_rmse_m: rmse,
         depth_median_m: median,
         over_1mm: abs.iter().filter(|&&e| e > 1e-3).count(),
+        interior: InteriorTruth {
+            pixels: interior_object,
+            coverage: interior_errors.len() as f64 / interior_object.max(1) as f64,
+            depth_rmse_m: interior_rmse,
+            depth_median_m: interior_median,
+        },
         spheres,
     }
+}
+
+/// RMS and median absolute value of `errors` (NaN, NaN when empty).
+fn rmse_and_median(errors: &[f64]) -> (f64, f64) {
+    if errors.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    let mut abs: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
+    abs.sort_by(f64::total_cmp);
+    (rmse, abs[abs.len() / 2])
+}
+
+/// Per pixel of a row-major `width`-wide object map: no pixel within
+/// `margin` (Chebyshev distance) shows another object or lies off the image.
+fn interior_pixels(object: &[u16], width: usize, margin: usize) -> Vec<bool> {
+    if width == 0 {
+        return Vec::new();
+    }
+    let height = object.len() / width;
+    // A pixel is an edge when a 4-neighbour differs or it is on the border.
+    let edge: Vec<bool> = (0..width * height)
+        .map(|i| {
+            let (x, y) = (i % width, i / width);
+            let o = object[i];
+            x == 0
+                || y == 0
+                || x + 1 == width
+                || y + 1 == height
+                || object[i - 1] != o
+                || object[i + 1] != o
+                || object[i - width] != o
+                || object[i + width] != o
+        })
+        .collect();
+    // Grow the edges by `margin` along rows, then along columns.
+    let grow = |mask: &[bool], step: usize, len: usize, lines: usize, stride: usize| {
+        let mut out = vec![false; mask.len()];
+        for line in 0..lines {
+            let at = |k: usize| line * stride + k * step;
+            let mut last_edge: Option<usize> = None;
+            for k in 0..len {
+                if mask[at(k)] {
+                    last_edge = Some(k);
+                }
+                out[at(k)] |= last_edge.is_some_and(|e| k - e <= margin);
+            }
+            last_edge = None;
+            for k in (0..len).rev() {
+                if mask[at(k)] {
+                    last_edge = Some(k);
+                }
+                out[at(k)] |= last_edge.is_some_and(|e| e - k <= margin);
+            }
+        }
+        out
+    };
+    let rows = grow(&edge, 1, width, height, width);
+    let near = grow(&rows, width, height, width, 1);
+    near.iter().map(|&n| !n).collect()
 }
 
 #[cfg(test)]
@@ -417,6 +509,33 @@ mod tests {
         assert!((t[0] - (1.0 + 104e-6)).abs() < 1e-12, "{}", t[0]);
         assert!((t[1] - t[0] - 200e-6).abs() < 1e-12);
         assert!((t[24] - t[0] - f64::from(FAST_FRAME_NS) * 1e-9).abs() < 1e-12);
+    }
+
+    #[test]
+    fn interior_keeps_pixels_a_margin_away_from_other_objects() {
+        // 20x12, object 1 in columns 5..15 of rows 2..10, background 0.
+        let (w, h) = (20, 12);
+        let object: Vec<u16> = (0..w * h)
+            .map(|i| u16::from((5..15).contains(&(i % w)) && (2..10).contains(&(i / w))))
+            .collect();
+        let inside = interior_pixels(&object, w, 2);
+        let kept: Vec<(usize, usize)> = (0..w * h)
+            .filter(|&i| inside[i])
+            .map(|i| (i % w, i / w))
+            .collect();
+        // Object 1: edges at x 5, 14 and y 2, 9; 2 px inside them leaves x 8..=11, y 5..=6.
+        let expected_object: Vec<(usize, usize)> = (5..=6)
+            .flat_map(|y| (8..=11).map(move |x| (x, y)))
+            .collect();
+        let object_kept: Vec<_> = kept
+            .iter()
+            .copied()
+            .filter(|&(x, y)| object[y * w + x] == 1)
+            .collect();
+        assert_eq!(object_kept, expected_object);
+        // The background is a strip at most 4 px wide between the object and
+        // the image border: none of it is interior.
+        assert!(kept.iter().all(|&(x, y)| object[y * w + x] == 1));
     }
 
     #[test]

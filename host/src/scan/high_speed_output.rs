@@ -66,6 +66,13 @@ pub struct InstantReport {
     pub depth_median_um: Option<f64>,
     /// Decoded object pixels more than 1 mm off.
     pub over_1mm: Option<usize>,
+    /// Coverage of the object's interior (pixels at least
+    /// `INTERIOR_MARGIN_PX` from another object).
+    pub interior_coverage: Option<f64>,
+    /// Depth RMSE over the interior, micrometres.
+    pub interior_depth_rmse_um: Option<f64>,
+    /// Median absolute depth error over the interior, micrometres.
+    pub interior_depth_median_um: Option<f64>,
     /// Spheres fitted at this instant.
     pub spheres: Vec<SphereReport>,
 }
@@ -142,6 +149,9 @@ pub fn report(scan: &HighSpeedResult) -> HighSpeedReport {
             depth_rmse_um: i.truth.as_ref().map(|t| t.depth_rmse_m * 1e6),
             depth_median_um: i.truth.as_ref().map(|t| t.depth_median_m * 1e6),
             over_1mm: i.truth.as_ref().map(|t| t.over_1mm),
+            interior_coverage: i.truth.as_ref().map(|t| t.interior.coverage),
+            interior_depth_rmse_um: i.truth.as_ref().map(|t| t.interior.depth_rmse_m * 1e6),
+            interior_depth_median_um: i.truth.as_ref().map(|t| t.interior.depth_median_m * 1e6),
             spheres: i
                 .truth
                 .as_ref()

@@ -95,6 +95,26 @@ fn print_summary(report: &HighSpeedReport, out: &Path) {
             sorted[sorted.len() - 1],
             mean(&coverage)
         );
+        let mut interior: Vec<f64> = report
+            .instants
+            .iter()
+            .filter_map(|i| i.interior_depth_rmse_um)
+            .filter(|r| r.is_finite())
+            .collect();
+        interior.sort_by(f64::total_cmp);
+        if let (Some(lo), Some(hi)) = (interior.first(), interior.last()) {
+            let medians: Vec<f64> = report
+                .instants
+                .iter()
+                .filter_map(|i| i.interior_depth_median_um)
+                .collect();
+            println!(
+                "  object interiors (>= {} px from another object): depth RMSE median {:.1} um (min {lo:.1}, max {hi:.1}), median error mean {:.1} um",
+                slscan::scan::high_speed::INTERIOR_MARGIN_PX,
+                interior[interior.len() / 2],
+                mean(&medians)
+            );
+        }
         for name in report
             .instants
             .iter()
