@@ -9,59 +9,11 @@
 
 use std::time::{Duration, Instant};
 
-use slscan::calibration::{Head, PinholeModel};
 use slscan::highspeed::{Decoder, DecoderConfig, PatternSet};
-use slscan::raster::Raster;
-use slscan::synth::{render, stereo_rig, trace, two_spheres, Lighting};
+use slscan::synth::high_speed::{high_speed_exposure, high_speed_head};
+use slscan::synth::{trace, two_spheres};
 
 const DMD: (u32, u32) = (1280, 800);
-
-fn head(width: u32, height: u32) -> Head {
-    // The twin head's field: 42 deg across the camera, 56 deg across the DMD.
-    let camera = PinholeModel::ideal(
-        width,
-        height,
-        0.5 * f64::from(width) / 21f64.to_radians().tan(),
-    );
-    let mut projector = PinholeModel::ideal(DMD.0, DMD.1, 640.0 / 28f64.to_radians().tan());
-    projector.intrinsics.cy = 0.5 * f64::from(DMD.1);
-    let (camera, projector) = stereo_rig(camera, projector, 0.12, 0.5);
-    Head {
-        name: "A".into(),
-        camera,
-        projector,
-        view_errors: vec![],
-        port: None,
-    }
-}
-
-fn exposure(set: &PatternSet, head: &Head) -> [Raster<f32>; 3] {
-    let truth = trace(&two_spheres(0.5, 0.6), &head.camera, &head.projector);
-    let lighting = Lighting {
-        ambient: 0.03,
-        gain: 0.9,
-        noise_sigma: 0.002,
-    };
-    [0, 1, 2].map(|c| {
-        let pats: Vec<_> = set
-            .patterns()
-            .iter()
-            .filter(|p| p.colour == c)
-            .copied()
-            .collect();
-        render(
-            &truth,
-            |u, v| {
-                pats.iter()
-                    .map(|p| 0.5 + 0.5 * PatternSet::phase_at(p, u, v).cos())
-                    .sum::<f64>()
-                    / pats.len() as f64
-            },
-            &lighting,
-            3 + c as u64,
-        )
-    })
-}
 
 fn median(mut v: Vec<Duration>) -> Duration {
     v.sort();
@@ -81,8 +33,9 @@ fn main() {
     println!("|---|---|---|---|---|---|");
     for (w, h) in [(640u32, 480u32), (1280, 1024)] {
         let set = PatternSet::seed001(DMD).expect("seed set");
-        let head = head(w, h);
-        let planes = exposure(&set, &head);
+        let head = high_speed_head(w, h, DMD);
+        let truth = trace(&two_spheres(0.5, 0.6), &head.camera, &head.projector);
+        let planes = high_speed_exposure(&set, &truth, 0.002, 3);
         let t = Instant::now();
         let decoder = Decoder::new(set, &head, DecoderConfig::default()).expect("decoder");
         let setup = t.elapsed();

@@ -3,59 +3,16 @@
 //! projector coordinate, Gaussian noise): each of the 24 instants' depth against
 //! the traced truth, and the bad inputs it must refuse.
 
-use slscan::calibration::{Head, PinholeModel};
+use slscan::calibration::Head;
 use slscan::highspeed::{Decoder, DecoderConfig, HighSpeedError, PatternSet};
 use slscan::raster::Raster;
-use slscan::synth::{render, stereo_rig, trace, two_spheres, GroundTruth, Lighting};
+use slscan::synth::high_speed::{high_speed_exposure, high_speed_head};
+use slscan::synth::{trace, two_spheres, GroundTruth};
 
 const DMD: (u32, u32) = (1280, 800);
 
-fn head(width: u32, height: u32) -> Head {
-    let camera = PinholeModel::ideal(width, height, 833.0 * f64::from(width) / 640.0);
-    let mut projector = PinholeModel::ideal(DMD.0, DMD.1, 1203.0);
-    projector.intrinsics.cy = 0.5 * f64::from(DMD.1);
-    let (camera, projector) = stereo_rig(camera, projector, 0.12, 0.5);
-    Head {
-        name: "A".into(),
-        camera,
-        projector,
-        view_errors: vec![],
-        port: None,
-    }
-}
-
-/// Each LED's eight patterns summed in one exposure, scaled so the brightest
-/// possible pixel stays below full scale.
-fn exposure(set: &PatternSet, truth: &GroundTruth, noise: f32, seed: u64) -> [Raster<f32>; 3] {
-    let lighting = Lighting {
-        ambient: 0.03,
-        gain: 0.9,
-        noise_sigma: noise,
-    };
-    [0, 1, 2].map(|c| {
-        let pats: Vec<_> = set
-            .patterns()
-            .iter()
-            .filter(|p| p.colour == c)
-            .copied()
-            .collect();
-        let n = pats.len() as f64;
-        render(
-            truth,
-            |u, v| {
-                pats.iter()
-                    .map(|p| 0.5 + 0.5 * PatternSet::phase_at(p, u, v).cos())
-                    .sum::<f64>()
-                    / n
-            },
-            &lighting,
-            seed + c as u64,
-        )
-    })
-}
-
 fn scene(width: u32, height: u32) -> (Head, GroundTruth) {
-    let head = head(width, height);
+    let head = high_speed_head(width, height, DMD);
     let truth = trace(&two_spheres(0.5, 0.6), &head.camera, &head.projector);
     (head, truth)
 }
@@ -64,7 +21,7 @@ fn scene(width: u32, height: u32) -> (Head, GroundTruth) {
 fn each_instant_lands_on_the_traced_surface() {
     let (head, truth) = scene(320, 240);
     let set = PatternSet::seed001(DMD).unwrap();
-    let planes = exposure(&set, &truth, 0.002, 7);
+    let planes = high_speed_exposure(&set, &truth, 0.002, 7);
     let decoder = Decoder::new(set.clone(), &head, DecoderConfig::default()).unwrap();
     let out = decoder
         .decode([&planes[0], &planes[1], &planes[2]])
@@ -121,7 +78,7 @@ fn bad_exposures_are_refused_with_what_is_wrong() {
     let (head, truth) = scene(96, 72);
     let set = PatternSet::seed001(DMD).unwrap();
     let decoder = Decoder::new(set.clone(), &head, DecoderConfig::default()).unwrap();
-    let planes = exposure(&set, &truth, 0.0, 1);
+    let planes = high_speed_exposure(&set, &truth, 0.0, 1);
     // Wrong size.
     let small = Raster::filled(64, 72, 0.2f32);
     let err = decoder

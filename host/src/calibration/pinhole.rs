@@ -247,6 +247,20 @@ impl PinholeModel {
             .undistort((u - k.cx) / k.fx, (v - k.cy) / k.fy)
     }
 
+    /// [`Self::pixel_to_normalised`] of every pixel, row-major (NaN where
+    /// undistortion does not converge), on all cores.
+    pub fn normalised_grid(&self) -> Vec<[f64; 2]> {
+        use rayon::prelude::*;
+        let width = self.width_px as usize;
+        (0..width * self.height_px as usize)
+            .into_par_iter()
+            .map(|i| {
+                self.pixel_to_normalised((i % width) as f64, (i / width) as f64)
+                    .map_or([f64::NAN; 2], |(x, y)| [x, y])
+            })
+            .collect()
+    }
+
     /// The world ray through pixel `(u, v)`; `None` where undistortion does not converge.
     pub fn pixel_ray(&self, u: f64, v: f64) -> Option<Ray> {
         let (x, y) = self.pixel_to_normalised(u, v)?;

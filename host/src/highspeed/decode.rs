@@ -127,14 +127,7 @@ impl Decoder {
         let camera = head.camera;
         let projector = head.projector;
         let (width, height) = (camera.width_px as usize, camera.height_px as usize);
-        let rays: Vec<[f64; 2]> = (0..width * height)
-            .into_par_iter()
-            .map(|i| {
-                camera
-                    .pixel_to_normalised((i % width) as f64, (i / width) as f64)
-                    .map_or([f64::NAN; 2], |(x, y)| [x, y])
-            })
-            .collect();
+        let rays = camera.normalised_grid();
         let camera_to_projector = projector.pose.compose(&camera.pose.inverse());
         let z_ref = 2.0 / (1.0 / near + 1.0 / far);
         let reference: Vec<[f64; 2]> = rays

@@ -13,6 +13,7 @@
 //! digital twin (hil-sim) replaces this for realistic renders.
 
 pub mod calibration_head;
+pub mod high_speed;
 pub mod targets;
 
 use nalgebra::{Point3, Vector3};

@@ -403,15 +403,8 @@ impl PortTriangulator {
     ) -> Result<Self, FlatPortError> {
         camera_port.validate()?;
         projector_port.validate()?;
-        let (width, height) = (camera.width_px as usize, camera.height_px as usize);
-        let normalised = (0..width * height)
-            .into_par_iter()
-            .map(|i| {
-                camera
-                    .pixel_to_normalised((i % width) as f64, (i / width) as f64)
-                    .map_or([f64::NAN; 2], |(x, y)| [x, y])
-            })
-            .collect();
+        let width = camera.width_px as usize;
+        let normalised = camera.normalised_grid();
         Ok(Self {
             camera: *camera,
             camera_port: *camera_port,
