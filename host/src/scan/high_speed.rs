@@ -88,8 +88,7 @@ pub struct InstantTruth {
     /// [`INTERIOR_MARGIN_PX`] from any other object (where the decoder's
     /// windows see one surface).
     pub interior: InteriorTruth,
-    /// Per true sphere seen with enough points: (name, points, fit RMSE m,
-    /// radius error m, centre error m).
+    /// Each true sphere seen with at least [`MIN_SPHERE_POINTS`] decoded points, fitted.
     pub spheres: Vec<InstantSphere>,
 }
 
@@ -306,8 +305,9 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
 
 /// Four frames of the 208 Hz camera on the high-speed wiring: a dark one
 /// (pattern 0, no LED) and each LED's white flat (patterns 1, 2, 3), 1.5 ms
-/// each, so an LED alone fills the sensor about as one channel of the
-/// multiplexed exposure does.
+/// each: an LED alone then fills its channel nearly as far as the multiplexed
+/// exposure's brightest pixels (all eight of its patterns on, 1.6 ms) do, and
+/// its weak leak into the other channels stays well above the 8-bit step.
 pub fn led_flats_plan() -> ScanPlan {
     let base = multiplexed_24_at_5khz(1);
     let mut plan = ScanPlan::new(&base.heads, 1, 4 * FAST_FRAME_NS, base.margin_ns)
