@@ -24,6 +24,7 @@ pub mod calibration;
 pub mod capture;
 pub mod dealias;
 pub mod demultiplex;
+pub mod fft2;
 pub mod fit;
 pub mod fusion;
 pub mod highspeed;

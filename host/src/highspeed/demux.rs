@@ -19,9 +19,9 @@ use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use rustfft::num_complex::Complex32;
 
-use super::fft2::Fft2;
 use super::set::PatternSet;
 use super::HighSpeedError;
+use crate::fft2::Fft2;
 
 /// How the exposure is demultiplexed (the stages of the ablation).
 #[derive(Clone, Copy, Debug, PartialEq)]

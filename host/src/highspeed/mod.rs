@@ -7,8 +7,7 @@
 //! - [`demux`]: the analytic multi-carrier demultiplexer (crosstalk and zero-order
 //!   removal, carrier demodulation with windows sized from the carriers);
 //! - [`decode`]: PDM unwrapping along each pixel's epipolar segment and per-instant
-//!   depth;
-//! - [`fft2`]: the 2-D FFT the demultiplexer filters with.
+//!   depth.
 //!
 //! The seed's three networks (zero-order/crosstalk removal, spatial-frequency
 //! decomposition, direction-gated experts) are not built yet: this is the
@@ -17,7 +16,6 @@
 pub mod crosstalk;
 pub mod decode;
 pub mod demux;
-pub mod fft2;
 pub mod set;
 
 pub use crosstalk::crosstalk_from_flats;

@@ -44,12 +44,10 @@
 //!   pixels are filled from their block's median only so the transform can
 //!   run, and come out NaN.
 
-use std::sync::Arc;
-
 use rayon::prelude::*;
 use rustfft::num_complex::Complex32;
-use rustfft::{Fft, FftPlanner};
 
+use crate::fft2::Fft2;
 use crate::raster::Raster;
 
 /// Smallest image side the restorer takes, pixels (the noise estimate's
@@ -224,12 +222,10 @@ pub struct ClassicalRestorer {
     width: usize,
     height: usize,
     params: RestoreParams,
-    row_forward: Arc<dyn Fft<f32>>,
-    row_inverse: Arc<dyn Fft<f32>>,
-    col_forward: Arc<dyn Fft<f32>>,
-    col_inverse: Arc<dyn Fft<f32>>,
+    /// Transforms of the mirror-padded (2w x 2h) frame.
+    fft: Fft2,
     /// Wiener gain per frequency of the padded frame, transposed layout
-    /// (line `kx` holds the column frequencies), the inverse's `1 / N` folded in.
+    /// (line `kx` holds the column frequencies).
     gain: Vec<f32>,
 }
 
@@ -267,17 +263,15 @@ impl ClassicalRestorer {
         }
         params.validate()?;
         let (pw, ph) = (2 * width, 2 * height);
-        let mut planner = FftPlanner::<f32>::new();
         let otf_x = gaussian_otf(pw, params.psf_sigma_px);
         let otf_y = gaussian_otf(ph, params.psf_sigma_px);
         let k = params.noise_to_signal as f32;
-        let n = (pw * ph) as f32;
         let gain = otf_x
             .iter()
             .flat_map(|hx| {
                 otf_y.iter().map(move |hy| {
                     let h = hx * hy;
-                    h * (1.0 + k) / (h * h + k) / n
+                    h * (1.0 + k) / (h * h + k)
                 })
             })
             .collect();
@@ -285,10 +279,7 @@ impl ClassicalRestorer {
             width,
             height,
             params,
-            row_forward: planner.plan_fft_forward(pw),
-            row_inverse: planner.plan_fft_inverse(pw),
-            col_forward: planner.plan_fft_forward(ph),
-            col_inverse: planner.plan_fft_inverse(ph),
+            fft: Fft2::new(pw, ph),
             gain,
         })
     }
@@ -439,21 +430,17 @@ impl ClassicalRestorer {
                 *c = Complex32::new(src[sx], 0.0);
             }
         });
-        fft_lines(&self.row_forward, &mut rows, pw);
         // Transposed: line kx holds the ph column frequencies of row frequency kx.
-        let mut cols = transpose(&rows, pw, ph);
-        fft_lines(&self.col_forward, &mut cols, ph);
+        let mut cols = vec![Complex32::default(); pw * ph];
+        self.fft.forward(&mut rows, &mut cols);
         cols.par_iter_mut()
             .zip(&self.gain)
             .for_each(|(c, g)| *c *= g);
-        fft_lines(&self.col_inverse, &mut cols, ph);
-        let rows = transpose(&cols, ph, pw);
+        // Only the first h padded rows (and w of each) are kept.
+        self.fft.inverse_rows(&mut cols, &mut rows, h);
         let mut out = vec![0.0f32; w * h];
         out.par_chunks_mut(w).enumerate().for_each(|(y, o)| {
-            // Only the first w of each padded row is kept: transform that row alone.
-            let mut line = rows[y * pw..(y + 1) * pw].to_vec();
-            self.row_inverse.process(&mut line);
-            for (v, c) in o.iter_mut().zip(&line) {
+            for (v, c) in o.iter_mut().zip(&rows[y * pw..]) {
                 *v = c.re;
             }
         });
@@ -470,36 +457,6 @@ pub fn restore_classical(
     veil: Veil<'_>,
 ) -> Result<Restored, RestoreError> {
     ClassicalRestorer::new(image.width, image.height, *params)?.restore(image, veil)
-}
-
-/// In-place transforms of every `len`-long line of `data`, lines in parallel.
-fn fft_lines(fft: &Arc<dyn Fft<f32>>, data: &mut [Complex32], len: usize) {
-    let scratch = fft.get_inplace_scratch_len();
-    // A few lines per task: rustfft runs a multiple of `len` in one call.
-    data.par_chunks_mut(len * 8).for_each_init(
-        || vec![Complex32::default(); scratch],
-        |s, lines| fft.process_with_scratch(lines, s),
-    );
-}
-
-/// `src` is `h` lines of `w`; returns `w` lines of `h`.
-fn transpose(src: &[Complex32], w: usize, h: usize) -> Vec<Complex32> {
-    let mut dst = vec![Complex32::default(); w * h];
-    // Tiles of lines keep the strided reads in cache.
-    const TILE: usize = 32;
-    dst.par_chunks_mut(h * TILE)
-        .enumerate()
-        .for_each(|(t, out)| {
-            let x0 = t * TILE;
-            let lines = out.len() / h;
-            for y in 0..h {
-                let row = &src[y * w + x0..y * w + x0 + lines];
-                for (i, c) in row.iter().enumerate() {
-                    out[i * h + y] = *c;
-                }
-            }
-        });
-    dst
 }
 
 /// The `percentile` of the valid pixels of each `block x block` tile,
