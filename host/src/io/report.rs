@@ -347,6 +347,37 @@ pub struct ScanReport {
     pub warnings: Vec<String>,
     /// Wall-clock milliseconds per stage.
     pub timings_ms: std::collections::BTreeMap<String, f64>,
+    /// A water scan: turbidity, restorer and what it cost (absent in air).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub underwater: Option<UnderwaterReport>,
+}
+
+/// What a water scan did to its frames and rays.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct UnderwaterReport {
+    /// The turbidity level named for the scan ("T1".."T4"; null when none was named).
+    pub turbidity: Option<String>,
+    /// "none" or "classical".
+    pub restorer: String,
+    /// The classical restorer's forward-scatter PSF sigma, camera pixels.
+    pub psf_sigma_px: f64,
+    /// Phase-shift sets restored.
+    pub sets_restored: usize,
+    /// Frames restored.
+    pub frames_restored: usize,
+    /// Network evaluations (0 for the classical restorer: no network).
+    pub evaluations: usize,
+    /// Wall-clock time of the restoration, milliseconds.
+    pub restore_time_ms: f64,
+    /// Frame pixels masked by the restorer (NaN, saturated), all frames summed.
+    pub masked_pixels: usize,
+    /// Per head: decoded pixels whose ray or column missed its flat port.
+    pub port_misses: Vec<usize>,
+    /// How the points were triangulated.
+    pub triangulation: String,
+    /// Per head: the side-by-side picture of its first fringe frame as
+    /// captured and as decoded.
+    pub picture_files: Vec<String>,
 }
 
 /// What can go wrong writing the report.
@@ -455,6 +486,7 @@ mod tests {
             },
             warnings: Vec::new(),
             timings_ms: [("setup".to_string(), 1.0)].into(),
+            underwater: None,
         };
         let path = dir.join("report.json");
         write_report(&path, &report).unwrap();

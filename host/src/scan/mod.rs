@@ -41,6 +41,7 @@ pub mod self_check;
 pub mod spheres;
 pub mod truth;
 pub mod truth_frame;
+pub mod underwater;
 
 use std::time::Instant;
 
@@ -117,6 +118,9 @@ pub struct ScanConfig {
     /// Frame value at and above which a sample counts as saturated; a pixel
     /// with one in its fringe set is masked.
     pub saturation_level: f32,
+    /// What the heads look through: air, or water behind flat ports (each
+    /// set restored, every pixel triangulated through the ports).
+    pub medium: underwater::Medium,
 }
 
 impl ScanConfig {
@@ -144,6 +148,7 @@ impl ScanConfig {
             learned: None,
             exposures: Exposures::Single,
             saturation_level: DEFAULT_SATURATION_LEVEL,
+            medium: underwater::Medium::Air,
         }
     }
 }
@@ -317,6 +322,24 @@ pub enum ScanError {
         /// Heads in the calibration.
         heads: usize,
     },
+    /// A water scan needs every head's flat port in the calibration.
+    #[error("a water scan triangulates through each head's flat port, and head {head} has none in the calibration (add \"port\" to the rig file's head)")]
+    NoPort {
+        /// Head name.
+        head: &'static str,
+    },
+    /// A water scan takes one head at a time.
+    #[error("a water scan runs the sequential mode, not {mode:?}")]
+    WaterNeedsSequential {
+        /// The mode asked for.
+        mode: Mode,
+    },
+    /// Restoring the underwater frames failed (or its parameters are bad).
+    #[error("underwater restoration")]
+    Restore(#[source] crate::underwater::RestoreError),
+    /// Triangulating through the flat ports failed.
+    #[error("triangulation through the flat ports")]
+    Port(#[source] crate::triangulation::flat_port::FlatPortError),
     /// Setting up or decoding the high-speed exposures failed.
     #[error("high-speed decoding")]
     HighSpeed(#[from] crate::highspeed::HighSpeedError),
@@ -448,6 +471,8 @@ pub struct ScanResult {
     pub timings_ms: Vec<(&'static str, f64)>,
     /// Loud caveats of this run (masked aliased pixels, ...).
     pub warnings: Vec<String>,
+    /// A water scan: what the restoration did and what the ports left out.
+    pub underwater: Option<underwater::RestoreFigures>,
 }
 
 /// What a scan refuses before touching the rig: a bad pre-compensation
@@ -493,6 +518,7 @@ pub fn check_before_capture(
     if !(config.saturation_level > 0.0 && config.saturation_level <= 1.0) {
         return Err(ScanError::SaturationLevel(config.saturation_level));
     }
+    underwater::check_before_capture(calibration, config)?;
     match &config.exposures {
         Exposures::Single => {}
         _ if config.mode != Mode::Sequential => {
@@ -584,6 +610,14 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
     check_board_heads(rig, heads)?;
     let mut captured = capture::capture(rig, config, calibration, progress)?;
     clock.lap("capture");
+    let mut restored = match &config.medium {
+        underwater::Medium::Water(water) => {
+            let figures = underwater::restore_captured(&mut captured, water, progress)?;
+            clock.lap("restore");
+            Some(figures)
+        }
+        underwater::Medium::Air => None,
+    };
     let mut warnings = Vec::new();
     let (aliased_masks, dealias_stats) =
         capture::resolve_measured_overlap(&mut captured, config, &mut warnings)?;
@@ -609,7 +643,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         } else {
             None
         };
-        let (r, figures) = reconstruct_head(
+        let (r, figures, port_misses) = reconstruct_head(
             calibration,
             config,
             &mut captured,
@@ -617,6 +651,9 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             record.as_ref(),
             &mut warnings,
         )?;
+        if let Some(restored) = &mut restored {
+            restored.port_misses.push(port_misses);
+        }
         tracing::info!(head, points = r.cloud.len(), "reconstructed");
         exposures.push((figures, record));
         recons.push(r);
@@ -711,6 +748,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         surface_samples,
         timings_ms: clock.timings,
         warnings,
+        underwater: restored,
     })
 }
 

@@ -13,6 +13,7 @@ use crate::io::report::{
     write_report, AdaptiveReport, AliasedMaskReport, DealiasReport, ExposureReport, FrameFitReport,
     FrameOffset, FusedReport, HeadRegistrationReport, HeadReport, IcpReport, MultiViewReport,
     NetworkRunReport, PairReport, ReportError, ScanReport, SelfCheckReport, SphereReport,
+    UnderwaterReport,
 };
 use crate::io::report_html::{scan_page, write_html, PageError, PagePicture};
 use crate::pictures::{head_pictures, HeadPictures, KINDS};
@@ -68,6 +69,7 @@ pub fn output_files() -> Vec<String> {
         files.extend(KINDS.iter().map(|kind| format!("{kind}_{tag}.png")));
     }
     files.extend(CLOUD_VIEWS.map(|(name, ..)| format!("cloud_{name}.png")));
+    files.extend(HEAD_NAMES.map(|h| super::underwater::picture_file(&h.to_lowercase())));
     for head in HEAD_NAMES {
         let tag = head.to_lowercase();
         files.extend((0..MAX_FLOODS).map(|i| flood_file(&tag, i)));
@@ -279,7 +281,57 @@ pub fn report(scan: &ScanResult) -> ScanReport {
             .iter()
             .map(|(n, ms)| (n.to_string(), *ms))
             .collect(),
+        underwater: scan.underwater.as_ref().map(underwater_report),
     }
+}
+
+/// A water scan's restoration and port figures for the report.
+fn underwater_report(w: &super::underwater::RestoreFigures) -> UnderwaterReport {
+    UnderwaterReport {
+        turbidity: w.water.turbidity.map(|t| t.name().to_string()),
+        restorer: w.water.restorer.name().into(),
+        psf_sigma_px: w.water.psf_sigma_px,
+        sets_restored: w.sets,
+        frames_restored: w.frames,
+        evaluations: w.evaluations,
+        restore_time_ms: w.time_ms,
+        masked_pixels: w.masked_px,
+        port_misses: w.port_misses.clone(),
+        triangulation: "through each head's flat port (Snell at both faces)".into(),
+        picture_files: HEAD_NAMES
+            .iter()
+            .take(w.samples.len())
+            .map(|h| super::underwater::picture_file(&h.to_lowercase()))
+            .collect(),
+    }
+}
+
+/// Per head, its first fringe frame as captured beside the same frame as
+/// decoded (restored), each stretched to its own range.
+fn write_underwater_pictures(
+    dir: &Path,
+    w: &super::underwater::RestoreFigures,
+) -> Result<Vec<PagePicture>, OutputError> {
+    let mut page = Vec::new();
+    for (head, (captured, decoded)) in HEAD_NAMES.iter().zip(&w.samples) {
+        let file = super::underwater::picture_file(&head.to_lowercase());
+        let picture = super::underwater::side_by_side(&[captured, decoded]);
+        let path = dir.join(&file);
+        save_gray_png(&path, &picture, false)?;
+        let png = std::fs::read(&path).map_err(|source| OutputError::Write {
+            path: path.clone(),
+            source,
+        })?;
+        page.push(PagePicture {
+            file,
+            caption: format!(
+                "head {head}: first fringe frame as captured (left) and as decoded after the {} restorer (right), each stretched to its own range",
+                w.water.restorer.name()
+            ),
+            png,
+        });
+    }
+    Ok(page)
 }
 
 /// A head's exposure figures; adaptive, with its preliminaries' files.
@@ -424,6 +476,9 @@ fn write_files(
             &scan.fused.cloud,
             scan.config.camera_px,
         )?);
+    }
+    if let Some(water) = &scan.underwater {
+        page.extend(write_underwater_pictures(dir, water)?);
     }
     let report = report(scan);
     write_report(&dir.join("report.json"), &report)?;

@@ -35,7 +35,10 @@ pub(crate) fn head_reconstructor(
 /// reconstructed (in the sequential mode its saturated pixels masked),
 /// several merged per pixel, an adaptive scan's pixels over a step of its
 /// DMD level map left out ([`crate::adaptive::edges`]); with what the
-/// exposure left, and warnings for lost pixels.
+/// exposure left, and warnings for lost pixels. Under water the decoded
+/// pixels are triangulated through the head's port
+/// ([`super::underwater::through_port`]); the last value counts the pixels
+/// that missed it (0 in air).
 pub(super) fn reconstruct_head(
     calibration: &RigCalibration,
     config: &ScanConfig,
@@ -43,7 +46,7 @@ pub(super) fn reconstruct_head(
     h: usize,
     record: Option<&capture::AdaptiveRecord>,
     warnings: &mut Vec<String>,
-) -> Result<(Reconstruction, ExposureFigures), ScanError> {
+) -> Result<(Reconstruction, ExposureFigures, usize), ScanError> {
     let head = HEAD_NAMES[h];
     let rc = head_reconstructor(
         calibration,
@@ -85,6 +88,12 @@ pub(super) fn reconstruct_head(
         }
         None => r,
     };
+    let (r, port_misses) = match (&config.medium, &calibration.heads[h].port) {
+        (super::underwater::Medium::Water(_), Some(port)) => {
+            super::underwater::through_port(&rc, &calibration.heads[h], port, r)?
+        }
+        _ => (r, 0),
+    };
     if config.mode == Mode::Sequential {
         exposure::warn(head, &saturated, record.map(|r| &r.stats), warnings);
     }
@@ -102,5 +111,5 @@ pub(super) fn reconstruct_head(
             level_step_px,
         }),
     };
-    Ok((r, figures))
+    Ok((r, figures, port_misses))
 }

@@ -127,3 +127,53 @@ fn rigs_and_modes_the_board_cannot_run_are_refused_by_name() {
         Err(ScanError::NoLearnedModel)
     ));
 }
+
+#[test]
+fn a_water_scan_is_refused_without_a_port_on_every_head_and_outside_the_sequential_mode() {
+    use crate::triangulation::flat_port::FlatPort;
+    use underwater::{Medium, Restorer, WaterScan};
+    let mut config = ScanConfig::new("x");
+    config.medium = Medium::Water(WaterScan {
+        turbidity: None,
+        restorer: Restorer::Classical,
+        psf_sigma_px: 2.0,
+    });
+    let mut calibration = rig(2, true);
+    let err = check_before_capture(&calibration, &config).unwrap_err();
+    assert!(matches!(err, ScanError::NoPort { head: "A" }), "{err}");
+    calibration.heads[0].port = Some(FlatPort::thin(0.03, 1.33).unwrap());
+    let err = check_before_capture(&calibration, &config).unwrap_err();
+    assert!(matches!(err, ScanError::NoPort { head: "B" }), "{err}");
+    assert!(err.to_string().contains("\"port\""), "{err}");
+    calibration.heads[1].port = calibration.heads[0].port;
+    check_before_capture(&calibration, &config).unwrap();
+    // In air the ports are not looked at.
+    let air = ScanConfig::new("x");
+    check_before_capture(&rig(2, true), &air).unwrap();
+
+    let mut multiplexed = config.clone();
+    multiplexed.mode = Mode::SimultaneousMultiplexed;
+    let err = check_before_capture(&calibration, &multiplexed).unwrap_err();
+    assert!(
+        matches!(err, ScanError::WaterNeedsSequential { .. }),
+        "{err}"
+    );
+    for sigma in [f64::NAN, -1.0, 1e6] {
+        let mut bad = config.clone();
+        bad.medium = Medium::Water(WaterScan {
+            turbidity: None,
+            restorer: Restorer::Classical,
+            psf_sigma_px: sigma,
+        });
+        let err = check_before_capture(&calibration, &bad).unwrap_err();
+        assert!(matches!(err, ScanError::Restore(_)), "{sigma}: {err}");
+    }
+    // Without restoration the PSF is not used.
+    let mut unrestored = config.clone();
+    unrestored.medium = Medium::Water(WaterScan {
+        turbidity: None,
+        restorer: Restorer::None,
+        psf_sigma_px: f64::NAN,
+    });
+    check_before_capture(&calibration, &unrestored).unwrap();
+}

@@ -23,6 +23,7 @@ pub mod high_speed;
 pub mod rig;
 pub mod scan;
 pub mod truth;
+pub mod underwater;
 
 /// The twin's types a caller of this module needs (scene detail, sensor
 /// model, render settings), so that no file outside `sim/` names `hil_sim`.

@@ -16,6 +16,7 @@ use crate::io::report::ScanReport;
 use crate::rig::dlpc::Controller;
 use crate::rig::RigError;
 use crate::scan::calibration_file::CalibrationFileError;
+use crate::scan::underwater::Medium;
 use crate::scan::{output, plan, run_on_rig, Clock, Progress, ScanConfig, ScanError, ScanResult};
 
 /// A simulated scan: the product's [`ScanConfig`] plus what only the
@@ -120,6 +121,9 @@ pub enum SimScanError {
     /// The calibration file is unusable (checked before any capture).
     #[error("calibration")]
     Calibration(#[from] CalibrationFileError),
+    /// A simulated water scan needs the level of the twin's water.
+    #[error("a simulated water scan needs a turbidity level (--turbidity T1..T4)")]
+    NoTurbidity,
     /// The simulated rig could not be started.
     #[error("simulated rig")]
     Rig(#[from] RigError),
@@ -155,6 +159,10 @@ pub fn run_sim(
     let (scene, mut rig) = built_in(&scan.scene, &detail)?;
     for p in &mut rig.projectors {
         p.gamma = config.sim_projector_gamma;
+    }
+    if let Medium::Water(water) = &scan.medium {
+        let level = water.turbidity.ok_or(SimScanError::NoTurbidity)?;
+        super::underwater::submerge(&mut rig, level);
     }
     let heads = rig.cameras.len();
     if !(1..=protocol::limits::MAX_HEADS).contains(&heads) || rig.projectors.len() != heads {

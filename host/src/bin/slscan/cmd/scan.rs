@@ -18,6 +18,7 @@ use slscan::rig::folder_camera::{FolderCamera, FolderCameraConfig, FolderHead};
 use slscan::rig::folder_projector::{FolderProjector, FolderProjectorHead, PatternDelivery};
 use slscan::rig::hardware::HardwareRig;
 use slscan::rig::serial_board::SerialBoard;
+use slscan::scan::underwater::{water_periods_px, Medium, Restorer, Turbidity, WaterScan};
 use slscan::scan::{
     self, dealias_periods_px, default_periods_px, Exposures, Mode, Progress, ScanConfig,
 };
@@ -178,6 +179,107 @@ pub struct Args {
     /// as saturated; pixels with one are masked.
     #[arg(long, default_value_t = scan::DEFAULT_SATURATION_LEVEL)]
     saturation_level: f32,
+    /// What the heads look through: water puts every device behind a flat
+    /// port (the rig file's "port" on each head; the twin's are 30 mm in
+    /// front of each device), restores each fringe set (--restorer) and
+    /// triangulates through the ports; default periods 21 / 16 / 12 fringes
+    /// over the DMD (61 / 80 / 107 px on 1280, as coarse as seed 002's);
+    /// --sim: exposure lengthened for the water's attenuation.
+    #[arg(long, value_enum, default_value_t = MediumArg::Air)]
+    medium: MediumArg,
+    /// --medium water: the turbidity (--sim: the twin's water of that
+    /// level; hardware: the report's label).
+    #[arg(long, value_enum, ignore_case = true)]
+    turbidity: Option<TurbidityArg>,
+    /// --medium water: how each fringe set is restored before decoding.
+    #[arg(long, value_enum, default_value_t = RestorerArg::Classical)]
+    restorer: RestorerArg,
+    /// --medium water, classical restorer: forward-scatter PSF sigma, camera
+    /// pixels (--sim default: the level's rate over a nominal 0.47 m
+    /// camera-side water path; required on hardware).
+    #[arg(long)]
+    water_psf_sigma_px: Option<f64>,
+}
+
+/// `--medium` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum MediumArg {
+    /// In air: pinhole triangulation.
+    Air,
+    /// Under water, behind each head's flat port.
+    Water,
+}
+
+/// `--turbidity` values (seed 002's levels).
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum TurbidityArg {
+    /// Relatively clear water.
+    T1,
+    /// Mildly turbid nearshore water.
+    T2,
+    /// Highly turbid, sediment-rich water.
+    T3,
+    /// Extremely turbid water, strong backscatter.
+    T4,
+}
+
+impl From<TurbidityArg> for Turbidity {
+    fn from(t: TurbidityArg) -> Self {
+        match t {
+            TurbidityArg::T1 => Turbidity::T1,
+            TurbidityArg::T2 => Turbidity::T2,
+            TurbidityArg::T3 => Turbidity::T3,
+            TurbidityArg::T4 => Turbidity::T4,
+        }
+    }
+}
+
+/// `--restorer` values.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum RestorerArg {
+    /// The frames as taken.
+    None,
+    /// Wiener deconvolution with the forward-scatter Gaussian, then the
+    /// set's backscatter veil floor subtracted.
+    Classical,
+}
+
+/// `--medium`, `--turbidity`, `--restorer`, `--water-psf-sigma-px`; the PSF
+/// defaults to `default_psf_sigma_px` of the level (the simulator's), and
+/// without one a classical restorer needs `--water-psf-sigma-px`.
+fn medium_for(
+    args: &Args,
+    default_psf_sigma_px: impl Fn(Turbidity) -> Option<f64>,
+) -> anyhow::Result<Medium> {
+    let turbidity = args.turbidity.map(Turbidity::from);
+    if args.medium == MediumArg::Air {
+        if turbidity.is_some() || args.water_psf_sigma_px.is_some() {
+            anyhow::bail!(
+                "--turbidity and --water-psf-sigma-px describe water: add --medium water"
+            );
+        }
+        return Ok(Medium::Air);
+    }
+    let restorer = match args.restorer {
+        RestorerArg::None => Restorer::None,
+        RestorerArg::Classical => Restorer::Classical,
+    };
+    let psf = args
+        .water_psf_sigma_px
+        .or_else(|| turbidity.and_then(&default_psf_sigma_px));
+    let psf_sigma_px = match (restorer, psf) {
+        (_, Some(sigma)) => sigma,
+        (Restorer::None, None) => 0.0,
+        (Restorer::Classical, None) => anyhow::bail!(
+            "--restorer classical under water needs the forward-scatter PSF: give \
+             --water-psf-sigma-px (camera pixels), or --restorer none"
+        ),
+    };
+    Ok(Medium::Water(WaterScan {
+        turbidity,
+        restorer,
+        psf_sigma_px,
+    }))
 }
 
 /// `--adaptive` values.
@@ -373,6 +475,15 @@ fn scan_sim(
     scan.learned = load_network(args, mode, &scan.periods_px, scan.steps)?;
     scan.exposures = exposures_for(args);
     scan.saturation_level = args.saturation_level;
+    scan.medium = medium_for(args, |level| {
+        Some(slscan::sim::underwater::nominal_psf_sigma_px(level))
+    })?;
+    if let (Medium::Water(water), Exposures::Single) = (&scan.medium, &scan.exposures) {
+        if let Some(level) = water.turbidity {
+            let scale = slscan::sim::underwater::exposure_scale(level);
+            scan.exposures = Exposures::Multi(vec![scale]);
+        }
+    }
     Ok(scan_to_dir(&config, &args.out, progress)?)
 }
 
@@ -381,11 +492,13 @@ fn scan_sim(_: &Args, _: Mode, _: &mut dyn FnMut(Progress)) -> anyhow::Result<Sc
     Err(super::no_simulator("scan --sim"))
 }
 
-/// `--periods`, or the mode's default: four periods for the simultaneous
-/// mode's analytic de-aliasing, seed 004's three pitches otherwise.
+/// `--periods`, or the default: 21 / 16 / 12 fringes under water,
+/// four periods for the simultaneous mode's analytic de-aliasing, seed
+/// 004's three pitches otherwise.
 fn periods_for(args: &Args, mode: Mode, dmd_width_px: u32) -> Vec<f64> {
     match (&args.periods, mode, DealiasMethod::from(args.dealias)) {
         (Some(p), ..) => p.clone(),
+        (None, ..) if args.medium == MediumArg::Water => water_periods_px(dmd_width_px),
         (None, Mode::Simultaneous, DealiasMethod::Analytic | DealiasMethod::Learned) => {
             dealias_periods_px(dmd_width_px)
         }
@@ -639,6 +752,7 @@ fn hardware_config(
     config.learned = load_network(args, mode, &config.periods_px, config.steps)?;
     config.exposures = exposures_for(args);
     config.saturation_level = args.saturation_level;
+    config.medium = medium_for(args, |_| None)?;
     Ok(config)
 }
 

@@ -1,0 +1,350 @@
+//! A scan under water (issue 18, seed 002): every head looks through a flat
+//! port, each captured phase-shift set is restored before decoding, and
+//! every decoded pixel is triangulated through the ports.
+//!
+//! ```text
+//! captured sets (period by period, `steps` frames each)
+//!   --restore_captured (none | classical: Wiener + veil floor)--> decoded as in air
+//!   --through_ports (finest absolute phase -> DMD column -> Snell at both ports)--> cloud
+//! ```
+//!
+//! In air the pinhole triangulation of the decoded columns would leave a
+//! depth error of centimetres that no restoration removes, so a water scan
+//! refuses a calibration without a port on every head.
+
+use std::time::Instant;
+
+use super::{capture::Captured, Exposures, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
+use crate::calibration::{Head, RigCalibration};
+use crate::raster::Raster;
+use crate::reconstruct::{Reconstruction, Reconstructor};
+use crate::triangulation::flat_port::{FlatPort, PortTriangulator};
+use crate::underwater::{ClassicalRestorer, RestoreParams, Veil};
+use crate::unwrap::PixelStatus;
+
+/// Default fringe periods under water, DMD pixels, finest first: seed
+/// 004's three pitches of 21 / 16 / 12 fringes over the DMD width (61 / 80
+/// / 107 px on 1280 px), as coarse as seed 002's 59 / 64 / 70 px so the
+/// forward-scatter blur of turbid water leaves them modulation. Seed 002's
+/// own set beats to 66,338 px only through a third heterodyne level whose
+/// ~88x noise gain the twin's noise cannot carry: with it no pixel of the
+/// `spheres` scene decodes, not even in air (measured; `--periods
+/// 59,64,70` still runs it).
+pub fn water_periods_px(dmd_width_px: u32) -> Vec<f64> {
+    crate::patterns::three_pitch_periods_px(f64::from(dmd_width_px), 16).to_vec()
+}
+
+/// What the heads look through.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Medium {
+    /// Air: pinhole triangulation, no restoration.
+    #[default]
+    Air,
+    /// Water behind each head's flat port.
+    Water(WaterScan),
+}
+
+/// Seed 002's turbidity levels, as the user names the water (the twin's
+/// presets of the same names set its coefficients).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Turbidity {
+    /// Relatively clear water.
+    T1,
+    /// Mildly turbid nearshore water.
+    T2,
+    /// Highly turbid, sediment-rich water.
+    T3,
+    /// Extremely turbid water, strong backscatter.
+    T4,
+}
+
+impl Turbidity {
+    /// "T1" .. "T4".
+    pub fn name(self) -> &'static str {
+        match self {
+            Turbidity::T1 => "T1",
+            Turbidity::T2 => "T2",
+            Turbidity::T3 => "T3",
+            Turbidity::T4 => "T4",
+        }
+    }
+}
+
+/// How a water scan restores its fringes before decoding.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Restorer {
+    /// The frames as the cameras took them.
+    None,
+    /// [`crate::underwater::ClassicalRestorer`]: Wiener deconvolution with
+    /// the forward-scatter Gaussian, then the set's veil floor subtracted.
+    Classical,
+}
+
+impl Restorer {
+    /// Name for the report.
+    pub fn name(self) -> &'static str {
+        match self {
+            Restorer::None => "none",
+            Restorer::Classical => "classical",
+        }
+    }
+}
+
+/// A scan under water.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WaterScan {
+    /// The level, when the user named one (for the report).
+    pub turbidity: Option<Turbidity>,
+    /// How each fringe set is restored.
+    pub restorer: Restorer,
+    /// The classical restorer's forward-scatter PSF sigma, camera pixels
+    /// (the water's sigma per metre times the camera-side water path).
+    pub psf_sigma_px: f64,
+}
+
+/// What restoring a scan's frames did.
+#[derive(Clone, Debug)]
+pub struct RestoreFigures {
+    /// The water scan it ran for.
+    pub water: WaterScan,
+    /// Phase-shift sets restored (every head, period and exposure).
+    pub sets: usize,
+    /// Frames restored.
+    pub frames: usize,
+    /// Network evaluations (0: the classical restorer has no network).
+    pub evaluations: usize,
+    /// Wall-clock time of the restoration, milliseconds.
+    pub time_ms: f64,
+    /// Pixels masked as NaN, saturated or not finite (every frame summed).
+    pub masked_px: usize,
+    /// Per head: its first fringe frame as captured and as decoded (after
+    /// restoration), for the side-by-side picture.
+    pub samples: Vec<(Raster<f32>, Raster<f32>)>,
+    /// Per head: decoded pixels whose ray or column missed a port (left out).
+    pub port_misses: Vec<usize>,
+}
+
+/// What a water scan refuses before any capture: a head without a port, a
+/// mode or exposure kind it does not run, a classical restorer's bad PSF.
+pub fn check_before_capture(
+    calibration: &RigCalibration,
+    config: &ScanConfig,
+) -> Result<(), ScanError> {
+    let Medium::Water(water) = &config.medium else {
+        return Ok(());
+    };
+    if let Some(h) = calibration.heads.iter().position(|h| h.port.is_none()) {
+        return Err(ScanError::NoPort {
+            head: HEAD_NAMES.get(h).copied().unwrap_or("?"),
+        });
+    }
+    if config.mode != Mode::Sequential {
+        return Err(ScanError::WaterNeedsSequential { mode: config.mode });
+    }
+    if !matches!(config.exposures, Exposures::Single | Exposures::Multi(_)) {
+        return Err(ScanError::ExposuresNeedSequential {
+            mode: config.mode,
+            exposures: "adaptive under water",
+        });
+    }
+    if water.restorer == Restorer::Classical {
+        RestoreParams::new(water.psf_sigma_px)
+            .validate()
+            .map_err(ScanError::Restore)?;
+    }
+    Ok(())
+}
+
+/// Restores every captured phase-shift set of every head in place (the
+/// frames the reconstruction reads; the raw frames stay for the pictures
+/// and the saturation check). Masked pixels come back as 0, which no
+/// modulation threshold passes.
+pub fn restore_captured(
+    captured: &mut Captured,
+    water: &WaterScan,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<RestoreFigures, ScanError> {
+    let start = Instant::now();
+    let steps = captured.steps.max(1);
+    let mut figures = RestoreFigures {
+        water: water.clone(),
+        sets: 0,
+        frames: 0,
+        evaluations: 0,
+        time_ms: 0.0,
+        masked_px: 0,
+        samples: Vec::new(),
+        port_misses: Vec::new(),
+    };
+    let sets: usize = captured.frames.iter().map(|f| f.len() / steps).sum();
+    progress(Progress::Stage {
+        name: "restore",
+        total: if water.restorer == Restorer::None {
+            0
+        } else {
+            sets as u64
+        },
+    });
+    for frames in &mut captured.frames {
+        let before = frames.first().cloned();
+        if let (Restorer::Classical, Some(first)) = (water.restorer, frames.first()) {
+            // One restorer (FFT plans, Wiener gain) per camera: its frames share one size.
+            let params = RestoreParams::new(water.psf_sigma_px);
+            let r = ClassicalRestorer::new(first.width, first.height, params)
+                .map_err(ScanError::Restore)?;
+            for set in frames.chunks_mut(steps) {
+                let refs: Vec<&Raster<f32>> = set.iter().collect();
+                let restored = r
+                    .restore_set(&refs, Veil::Floor)
+                    .map_err(ScanError::Restore)?;
+                figures.frames += restored.len();
+                for (frame, out) in set.iter_mut().zip(restored) {
+                    figures.masked_px += out.masked;
+                    *frame = out.image;
+                    frame
+                        .data
+                        .iter_mut()
+                        .filter(|v| !v.is_finite())
+                        .for_each(|v| *v = 0.0);
+                }
+                figures.sets += 1;
+                progress(Progress::Step);
+            }
+        }
+        if let (Some(before), Some(after)) = (before, frames.first()) {
+            figures.samples.push((before, after.clone()));
+        }
+    }
+    progress(Progress::Done);
+    figures.time_ms = start.elapsed().as_secs_f64() * 1e3;
+    Ok(figures)
+}
+
+/// Head `h`'s decoded pixels triangulated again through its port: each
+/// valid pixel's finest absolute phase is its DMD column, and the point is
+/// where the camera's water ray meets that column's refracted surface.
+/// Pixels whose ray or column misses the port are left out; the cloud is
+/// compacted again. Returns the result and the pixels left out.
+///
+/// The predicted per-point sigma stays the in-air triangulation's (the
+/// ports change the ray angles a little, not the phase noise).
+pub fn through_port(
+    rc: &Reconstructor,
+    head: &Head,
+    port: &FlatPort,
+    recon: Reconstruction,
+) -> Result<(Reconstruction, usize), ScanError> {
+    let tri = PortTriangulator::new(&head.camera, port, &head.projector, port)
+        .map_err(ScanError::Port)?;
+    let px_per_rad = rc.config().periods_px[0] / std::f64::consts::TAU;
+    let mut maps = recon.pixels;
+    let columns: Vec<f32> = maps
+        .phase_u
+        .iter()
+        .zip(&maps.status)
+        .map(|(&p, &s)| {
+            if s == PixelStatus::Valid {
+                (f64::from(p) * px_per_rad) as f32
+            } else {
+                f32::NAN
+            }
+        })
+        .collect();
+    let hits = tri.intersect_columns(&columns).map_err(ScanError::Port)?;
+    let mut misses = 0;
+    for (i, hit) in hits.into_iter().enumerate() {
+        if maps.status[i] != PixelStatus::Valid {
+            continue;
+        }
+        match hit {
+            Some(hit) => {
+                for (axis, v) in maps.point_m.iter_mut().zip(hit.point_m.coords.iter()) {
+                    axis[i] = *v as f32;
+                }
+                maps.depth_m[i] = hit.depth_m as f32;
+            }
+            None => {
+                misses += 1;
+                maps.status[i] = PixelStatus::Unreliable;
+                for axis in maps.point_m.iter_mut() {
+                    axis[i] = f32::NAN;
+                }
+                maps.depth_m[i] = f32::NAN;
+                maps.sigma_m[i] = f32::NAN;
+                maps.phase_u[i] = f32::NAN;
+            }
+        }
+    }
+    Ok((rc.from_maps(maps), misses))
+}
+
+/// The picture file of head `tag`'s captured and decoded fringe frame.
+pub fn picture_file(tag: &str) -> String {
+    format!("underwater_{tag}.png")
+}
+
+/// Frames side by side, 8 px apart (gap black), each stretched from its own
+/// 1st to 99th percentile of finite values to [0, 1] so a faint, veiled
+/// fringe shows as well as a restored one. Frames of unequal height are
+/// top-aligned.
+pub fn side_by_side(frames: &[&Raster<f32>]) -> Raster<f32> {
+    const GAP: usize = 8;
+    let height = frames.iter().map(|f| f.height).max().unwrap_or(0);
+    let width =
+        frames.iter().map(|f| f.width).sum::<usize>() + GAP * frames.len().saturating_sub(1);
+    let mut out = Raster::filled(width, height, 0.0f32);
+    let mut x0 = 0;
+    for f in frames {
+        let (lo, hi) = percentile_range(&f.data);
+        let scale = if hi > lo { 1.0 / (hi - lo) } else { 0.0 };
+        for y in 0..f.height {
+            let src = &f.data[y * f.width..(y + 1) * f.width];
+            let dst = &mut out.data[y * width + x0..y * width + x0 + f.width];
+            for (d, &s) in dst.iter_mut().zip(src) {
+                *d = if s.is_finite() {
+                    ((s - lo) * scale).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+            }
+        }
+        x0 += f.width + GAP;
+    }
+    out
+}
+
+/// The 1st and 99th percentiles of the finite values (0, 0 when none).
+fn percentile_range(values: &[f32]) -> (f32, f32) {
+    let mut v: Vec<f32> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if v.is_empty() {
+        return (0.0, 0.0);
+    }
+    v.sort_unstable_by(f32::total_cmp);
+    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+    (at(0.01), at(0.99))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn side_by_side_stretches_each_frame_to_its_own_range_with_a_black_gap() {
+        let dim = Raster::from_fn(10, 4, |x, _| 0.10 + 0.01 * x as f32);
+        let mut bright = Raster::from_fn(6, 5, |x, _| 0.5 * x as f32);
+        bright.data[0] = f32::NAN;
+        let out = side_by_side(&[&dim, &bright]);
+        assert_eq!((out.width, out.height), (10 + 8 + 6, 5));
+        // Each frame spans [0, 1] after its own stretch.
+        let row = |y: usize, x0: usize, w: usize| out.data[y * out.width + x0..][..w].to_vec();
+        let left = row(1, 0, 10);
+        assert!(left[0] < 0.05 && left[9] > 0.95, "{left:?}");
+        assert!(left.windows(2).all(|w| w[0] <= w[1]));
+        let right = row(1, 18, 6);
+        assert!(right[0] < 0.05 && right[5] > 0.95, "{right:?}");
+        // Gap, the NaN pixel and the rows below the shorter frame are black.
+        assert!(row(1, 10, 8).iter().all(|&v| v == 0.0));
+        assert_eq!(out.data[18], 0.0);
+        assert!(row(4, 0, 10).iter().all(|&v| v == 0.0));
+    }
+}
