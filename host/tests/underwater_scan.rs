@@ -66,11 +66,27 @@ fn restoring_turbid_fringes_and_triangulating_through_the_ports_measures_the_sph
     assert_eq!((w.sets, w.frames, w.evaluations), (3, 12, 0));
     assert_eq!(w.port_misses, vec![0]);
     assert_eq!(w.samples.len(), 1);
+    // The simulator adds the clear-water reference of the same frame.
+    assert_eq!(w.references.len(), 1);
+    assert_eq!(w.references[0].len(), w.samples[0].0.len());
     let unrestored = none.underwater.as_ref().expect("water figures");
     assert_eq!(unrestored.sets, 0);
     // Restored frames differ from the captured ones; unrestored do not.
     assert_ne!(w.samples[0].0, w.samples[0].1);
     assert_eq!(unrestored.samples[0].0, unrestored.samples[0].1);
+
+    // The outputs: the three frames side by side and the report's figures.
+    let dir = std::env::temp_dir().join(format!("slscan-underwater-out-{}", std::process::id()));
+    let report = slscan::scan::output::write_scan(&dir, &classical, &mut |_| {}).unwrap();
+    let picture = image::open(dir.join("underwater_a.png")).unwrap();
+    assert_eq!(picture.width(), 3 * 320 + 2 * 8);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let u = report.underwater.expect("water report");
+    assert_eq!(
+        (u.turbidity.as_deref(), u.restorer.as_str(), u.evaluations),
+        (Some("T3"), "classical", 0)
+    );
+    assert_eq!(u.picture_files, vec!["underwater_a.png".to_string()]);
 }
 
 #[test]

@@ -376,7 +376,7 @@ pub struct UnderwaterReport {
     /// How the points were triangulated.
     pub triangulation: String,
     /// Per head: the side-by-side picture of its first fringe frame as
-    /// captured and as decoded.
+    /// captured, as decoded and (simulator only) through clear water.
     pub picture_files: Vec<String>,
 }
 

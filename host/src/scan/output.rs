@@ -313,9 +313,11 @@ fn write_underwater_pictures(
     w: &super::underwater::RestoreFigures,
 ) -> Result<Vec<PagePicture>, OutputError> {
     let mut page = Vec::new();
-    for (head, (captured, decoded)) in HEAD_NAMES.iter().zip(&w.samples) {
+    for (h, (head, (captured, decoded))) in HEAD_NAMES.iter().zip(&w.samples).enumerate() {
         let file = super::underwater::picture_file(&head.to_lowercase());
-        let picture = super::underwater::side_by_side(&[captured, decoded]);
+        let mut panels = vec![captured, decoded];
+        panels.extend(w.references.get(h));
+        let picture = super::underwater::side_by_side(&panels);
         let path = dir.join(&file);
         save_gray_png(&path, &picture, false)?;
         let png = std::fs::read(&path).map_err(|source| OutputError::Write {
@@ -325,8 +327,13 @@ fn write_underwater_pictures(
         page.push(PagePicture {
             file,
             caption: format!(
-                "head {head}: first fringe frame as captured (left) and as decoded after the {} restorer (right), each stretched to its own range",
-                w.water.restorer.name()
+                "head {head}: first fringe frame as captured, as decoded after the {} restorer{}, each stretched to its own range",
+                w.water.restorer.name(),
+                if w.references.get(h).is_some() {
+                    ", and through clear water (the simulator's noise-free reference)"
+                } else {
+                    ""
+                }
             ),
             png,
         });

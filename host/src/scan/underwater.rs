@@ -122,6 +122,10 @@ pub struct RestoreFigures {
     pub samples: Vec<(Raster<f32>, Raster<f32>)>,
     /// Per head: decoded pixels whose ray or column missed a port (left out).
     pub port_misses: Vec<usize>,
+    /// Per head: the same first fringe frame through clear water (the
+    /// ports' refraction only), noise-free, when a simulator can render it;
+    /// empty on hardware.
+    pub references: Vec<Raster<f32>>,
 }
 
 /// What a water scan refuses before any capture: a head without a port, a
@@ -175,6 +179,7 @@ pub fn restore_captured(
         masked_px: 0,
         samples: Vec::new(),
         port_misses: Vec::new(),
+        references: Vec::new(),
     };
     let sets: usize = captured.frames.iter().map(|f| f.len() / steps).sum();
     progress(Progress::Stage {

@@ -195,7 +195,7 @@ pub fn run_sim(
     let mut truth = ground_truth(&twin, heads)?;
     truth.calibration_is_true = config.calibration == CalibrationSource::TwinTruth;
     let mut sim = SimRig::start(
-        twin,
+        twin.clone(),
         SimRigConfig {
             board: config.board.clone(),
             client: scan.client,
@@ -217,6 +217,19 @@ pub fn run_sim(
         progress,
     )?;
     result.calibration_vs_truth = used.vs_truth;
+    if let Some(water) = &mut result.underwater {
+        // The reference the pictures put beside each head's captured and
+        // decoded frame: its first fringe through clear water.
+        let fringes = plan::fringe_sequence(scan.projector_px, &scan.periods_px, scan.steps);
+        if let Some(first) = fringes.first() {
+            for h in 0..heads {
+                let frame =
+                    super::underwater::clear_water_frame(twin.scene(), twin.rig(), h, first)?;
+                water.references.extend(frame);
+            }
+        }
+        clock.lap("clear-water reference");
+    }
     result.timings_ms.splice(0..0, clock.timings);
     Ok(result)
 }

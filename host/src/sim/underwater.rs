@@ -3,9 +3,15 @@
 //! scan takes from it (the restorer's PSF at a nominal working distance,
 //! the exposure that makes up the round trip's attenuation).
 
-use hil_sim::twin::{Medium, Rig, Turbidity as TwinTurbidity, Water};
+use std::sync::Arc;
 
-use crate::scan::plan::MAX_EXPOSURE_SCALE;
+use hil_sim::twin::{
+    Exposure, Medium, Pattern, ProjectorTimeline, Renderer, Rig, Scene, Turbidity as TwinTurbidity,
+    TwinError, Water,
+};
+
+use crate::raster::Raster;
+use crate::scan::plan::{display_s, MAX_EXPOSURE_SCALE};
 use crate::scan::underwater::Turbidity;
 
 /// Every device's port sits this far in front of it (as in `hil-sim dataset
@@ -45,6 +51,67 @@ pub fn exposure_scale(level: Turbidity) -> f64 {
     let c = twin_water(level).attenuation_per_m[1];
     let path_m = 2.0 * (NOMINAL_WORKING_DISTANCE_M - PORT_DISTANCE_M);
     (c * path_m).exp().min(MAX_EXPOSURE_SCALE)
+}
+
+/// The same water with nothing but its refraction: no attenuation, forward
+/// scatter or veil.
+pub fn clear(water: &Water) -> Water {
+    Water {
+        attenuation_per_m: [0.0; 3],
+        forward_sigma_px_per_m: 0.0,
+        backscatter_fraction: 0.0,
+        ..*water
+    }
+}
+
+/// Head `head`'s camera frame of DMD `pattern` (values in [0, 1]) through
+/// clear water, noise-free: the reference a restored frame is compared with
+/// (the same pixel geometry as the scan's frames; an in-air frame differs by
+/// the refraction, which no restoration undoes). `None` when the rig is not
+/// under water.
+pub fn clear_water_frame(
+    scene: &Scene,
+    rig: &Rig,
+    head: usize,
+    pattern: &Raster<f32>,
+) -> Result<Option<Raster<f32>>, TwinError> {
+    let Medium::Water(water) = &rig.medium else {
+        return Ok(None);
+    };
+    let mut clear_rig = rig.clone();
+    clear_rig.medium = Medium::Water(clear(water));
+    let grey: Vec<u8> = pattern
+        .data
+        .iter()
+        .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
+        .collect();
+    let pattern = Pattern::from_u8(pattern.width as u32, pattern.height as u32, &grey)?;
+    let exposure = Exposure {
+        start_s: 0.0,
+        end_s: display_s(),
+    };
+    let shown: Vec<ProjectorTimeline> = (0..rig.projectors.len())
+        .map(|p| {
+            let on = if p == head {
+                Arc::new(pattern.clone())
+            } else {
+                Arc::new(Pattern::flat(pattern.width, pattern.height, 0.0))
+            };
+            ProjectorTimeline::single(on, 0.0, exposure.end_s)
+        })
+        .collect();
+    let frame = Renderer::new(scene, &clear_rig, head, 0.0)?.frame(
+        &shown,
+        exposure,
+        &super::scan::sim_sensor(),
+        0,
+    )?;
+    let image = frame.clean;
+    Ok(Raster::from_vec(
+        image.width as usize,
+        image.height as usize,
+        image.data,
+    ))
 }
 
 #[cfg(test)]
