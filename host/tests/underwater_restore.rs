@@ -45,9 +45,8 @@ use hil_sim::twin::{
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use slscan::dealias::metrics::{mse_8bit, psnr_db, ssim_frames};
-use slscan::phase::{wrap_pi, PhaseShift};
 use slscan::raster::Raster;
+use slscan::underwater::score::Score;
 use slscan::underwater::{ClassicalRestorer, RestoreParams, Veil};
 
 const SIZE_PX: u32 = 256;
@@ -66,8 +65,6 @@ const PLACE: Placement = Placement {
     z_m: (0.44, 0.54),
     wall_z_m: 0.6,
 };
-/// Reference modulation below which a pixel's phase is not scored.
-const MIN_MODULATION: f32 = 0.02;
 const LEVELS: [Turbidity; 4] = [Turbidity::T1, Turbidity::T2, Turbidity::T3, Turbidity::T4];
 
 type Frames = Vec<Raster<f32>>;
@@ -166,91 +163,6 @@ fn sample(index: usize) -> Sample {
     Sample { air, clear, water }
 }
 
-/// `est` put on `truth` by the least-squares gain and offset over the
-/// pixels finite in both; pixels not finite in `est` stay NaN.
-fn fit_affine(est: &Raster<f32>, truth: &Raster<f32>) -> Raster<f32> {
-    let (mut n, mut se, mut st, mut see, mut set) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
-    for (&e, &t) in est.data.iter().zip(&truth.data) {
-        if e.is_finite() && t.is_finite() {
-            let (e, t) = (f64::from(e), f64::from(t));
-            n += 1.0;
-            se += e;
-            st += t;
-            see += e * e;
-            set += e * t;
-        }
-    }
-    let var = see - se * se / n;
-    let gain = if var > 0.0 {
-        (set - se * st / n) / var
-    } else {
-        0.0
-    };
-    let offset = (st - gain * se) / n;
-    Raster {
-        width: est.width,
-        height: est.height,
-        data: est
-            .data
-            .iter()
-            .map(|&e| (gain * f64::from(e) + offset) as f32)
-            .collect(),
-    }
-}
-
-/// Sums of one method against one reference over samples.
-#[derive(Default, Clone)]
-struct Score {
-    mse: Vec<f64>,
-    ssim: Vec<f64>,
-    phase_abs_sum: f64,
-    phase_count: usize,
-}
-
-impl Score {
-    fn add(&mut self, est: &Frames, reference: &Frames) {
-        let fitted: Frames = est
-            .iter()
-            .zip(reference)
-            .map(|(e, r)| fit_affine(e, r))
-            .collect();
-        let mask: Vec<bool> = (0..reference[0].len())
-            .map(|i| {
-                fitted
-                    .iter()
-                    .zip(reference)
-                    .all(|(e, r)| e.data[i].is_finite() && r.data[i].is_finite())
-            })
-            .collect();
-        self.mse.push(mse_8bit(&fitted, reference, &mask));
-        self.ssim.push(ssim_frames(&fitted, reference, &mask));
-        let decoder = PhaseShift::new(4).expect("4-step");
-        let phase = |f: &Frames| {
-            let refs: Vec<&Raster<f32>> = f.iter().collect();
-            decoder.wrapped_phase(&refs).expect("phase")
-        };
-        let (pe, pr) = (phase(est), phase(reference));
-        for (i, &m) in mask.iter().enumerate() {
-            let e = pe.phase.data[i];
-            if m && e.is_finite() && pr.modulation.data[i] >= MIN_MODULATION {
-                self.phase_abs_sum += f64::from(wrap_pi(e - pr.phase.data[i]).abs());
-                self.phase_count += 1;
-            }
-        }
-    }
-
-    /// (PSNR of the mean MSE, mean SSIM, phase MAE).
-    fn figures(&self) -> (f64, f64, f64) {
-        let mse = self.mse.iter().sum::<f64>() / self.mse.len() as f64;
-        let ssim = self.ssim.iter().sum::<f64>() / self.ssim.len() as f64;
-        (
-            psnr_db(mse),
-            ssim,
-            self.phase_abs_sum / self.phase_count as f64,
-        )
-    }
-}
-
 /// The ways compared, in table order.
 const METHODS: [&str; 4] = ["none", "classical", "veil floor", "Wiener only"];
 
@@ -259,7 +171,7 @@ fn underwater_classical_restoration_per_turbidity() {
     let samples: Vec<Sample> = (0..SAMPLES).map(sample).collect();
     let mut floor = Score::default();
     for s in &samples {
-        floor.add(&s.clear, &s.air);
+        floor.add(&s.clear, &s.air).expect("score");
     }
     let restorers: Vec<ClassicalRestorer> = LEVELS
         .iter()
@@ -294,8 +206,8 @@ fn underwater_classical_restoration_per_turbidity() {
                 restored(Veil::Keep),
             ];
             for (m, est) in estimates.iter().enumerate() {
-                row[m].0.add(est, &s.air);
-                row[m].1.add(est, &s.clear);
+                row[m].0.add(est, &s.air).expect("score");
+                row[m].1.add(est, &s.clear).expect("score");
             }
         }
         table.push(row);

@@ -118,3 +118,20 @@ fn a_water_scan_needs_a_level_in_the_simulator_and_a_port_on_every_head() {
         "{err}"
     );
 }
+
+#[test]
+fn a_restorer_model_for_other_fringes_is_refused_before_capture() {
+    use slscan::underwater::learned::{LearnedRestoreError, LearnedRestorer};
+    let onnx =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/underwater_onestep.onnx");
+    let periods = water_periods_px(1280);
+    LearnedRestorer::load(&onnx, &periods, 4, 1).unwrap();
+    let err = LearnedRestorer::load(&onnx, &[59.0, 64.0, 70.0], 4, 1).unwrap_err();
+    assert!(matches!(err, LearnedRestoreError::Patterns { .. }), "{err}");
+    let err = LearnedRestorer::load(&onnx, &periods, 3, 1).unwrap_err();
+    assert!(matches!(err, LearnedRestoreError::Patterns { .. }), "{err}");
+    // The de-aliaser (another job, other fringes) is refused as well.
+    let dealias = onnx.with_file_name("dealias_onestep.onnx");
+    let err = LearnedRestorer::load(&dealias, &[17.5, 20.0], 4, 1).unwrap_err();
+    assert!(matches!(err, LearnedRestoreError::Patterns { .. }), "{err}");
+}

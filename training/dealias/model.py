@@ -5,7 +5,8 @@ the condition; output: x0), same widths, so the one-step net is the
 diffusion model's ablation.
 
 Channels (see data.py): condition = 16 normalised aliased frames + own and
-other flat field = 18; x0 = 16 frames of the own projector's fringe.
+other flat field = 18; x0 = 16 frames of the own projector's fringe. Other
+networks (training/underwater/) give their own channel counts.
 """
 
 import math
@@ -69,11 +70,13 @@ class Attention(nn.Module):
 class UNet(nn.Module):
     """Three levels (width, 2 width, 4 width), attention at the lowest."""
 
-    def __init__(self, diffusion, width=16):
+    def __init__(self, diffusion, width=16, cond_channels=COND_CHANNELS, frame_channels=FRAME_CHANNELS):
         super().__init__()
         self.diffusion = diffusion
+        self.cond_channels = cond_channels
+        self.frame_channels = frame_channels
         temb = 4 * width if diffusion else 0
-        cin = COND_CHANNELS + (FRAME_CHANNELS if diffusion else 0)
+        cin = cond_channels + (frame_channels if diffusion else 0)
         w1, w2, w3 = width, 2 * width, 4 * width
         if diffusion:
             self.temb = nn.Sequential(nn.Linear(width, temb), nn.SiLU(), nn.Linear(temb, temb))
@@ -88,7 +91,7 @@ class UNet(nn.Module):
         self.dec2 = Block(2 * w2, w2, temb)
         self.up1 = nn.Conv2d(w2, w1, 3, padding=1)
         self.dec1 = Block(2 * w1, w1, temb)
-        self.out = nn.Conv2d(w1, FRAME_CHANNELS, 1)
+        self.out = nn.Conv2d(w1, frame_channels, 1)
 
     def forward(self, cond, x_t=None, t=None):
         if self.diffusion:

@@ -15,6 +15,7 @@ use std::path::Path;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
+use crate::infer::ddim::ddim;
 use crate::infer::tiles::{infer_tiled, Planes};
 use crate::infer::{Model, ModelError};
 use crate::raster::Raster;
@@ -91,12 +92,7 @@ impl LearnedDealiaser {
         let model = Model::load(onnx)?;
         let m = &model.meta;
         let path = onnx.display().to_string();
-        let same = m.periods_px.len() == periods_px.len()
-            && m.periods_px
-                .iter()
-                .zip(periods_px)
-                .all(|(a, b)| (a - b).abs() <= 1e-6 * b.abs());
-        if !same || m.steps_per_period != steps {
+        if !model.trained_for(periods_px, steps) {
             return Err(LearnedError::Patterns {
                 path,
                 trained: m.periods_px.clone(),
@@ -191,41 +187,6 @@ impl LearnedDealiaser {
     }
 }
 
-/// The cosine schedule's alpha-bar at `t` in [0, 1] (offset `s`).
-pub fn alpha_bar(t: f64, s: f64) -> f64 {
-    let f = |x: f64| {
-        ((x + s) / (1.0 + s) * std::f64::consts::FRAC_PI_2)
-            .cos()
-            .powi(2)
-    };
-    (f(t) / f(0.0)).clamp(0.0, 1.0)
-}
-
-/// Deterministic DDIM (eta = 0) with an x0-predicting `denoise(x_t, t)`:
-/// `steps` evaluations from `x` (pure noise at t = 1) down to t = 0.
-pub fn ddim<E>(
-    mut x: Vec<f32>,
-    steps: usize,
-    s: f64,
-    mut denoise: impl FnMut(&[f32], f32) -> Result<Vec<f32>, E>,
-) -> Result<Vec<f32>, E> {
-    let mut x0 = x.clone();
-    for i in 0..steps {
-        let (t_now, t_next) = (
-            1.0 - i as f64 / steps as f64,
-            1.0 - (i + 1) as f64 / steps as f64,
-        );
-        x0 = denoise(&x, t_now as f32)?;
-        let (a_now, a_next) = (alpha_bar(t_now, s), alpha_bar(t_next, s));
-        let root_rest = (1.0 - a_now).sqrt().max(1e-6);
-        for (xi, &x0i) in x.iter_mut().zip(&x0) {
-            let eps = (f64::from(*xi) - a_now.sqrt() * f64::from(x0i)) / root_rest;
-            *xi = (a_next.sqrt() * f64::from(x0i) + (1.0 - a_next).sqrt() * eps) as f32;
-        }
-    }
-    Ok(x0)
-}
-
 /// The network's condition planes for head `own`'s camera (`K N + 2` x H
 /// x W) and each pixel's light scale s.
 pub fn condition(
@@ -267,28 +228,6 @@ pub fn clean_frame(x0: f32, own_flat: f32, dark: f32, scale: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_schedule_runs_from_clean_to_pure_noise() {
-        assert!((alpha_bar(0.0, 0.008) - 1.0).abs() < 1e-12);
-        assert!(alpha_bar(1.0, 0.008) < 1e-8);
-        assert!(alpha_bar(0.3, 0.008) > alpha_bar(0.6, 0.008));
-    }
-
-    /// With a denoiser that knows x0, DDIM lands on it from any noise, and
-    /// calls the denoiser once per step.
-    #[test]
-    fn ddim_with_a_perfect_denoiser_returns_x0() {
-        let truth = vec![0.3f32, -0.7, 0.1];
-        let mut calls = 0;
-        let out = ddim::<()>(vec![1.5, -2.0, 0.4], 5, 0.008, |_, _| {
-            calls += 1;
-            Ok(truth.clone())
-        })
-        .unwrap();
-        assert_eq!(calls, 5);
-        assert_eq!(out, truth);
-    }
 
     #[test]
     fn condition_and_clean_frame_invert_each_other() {

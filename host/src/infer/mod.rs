@@ -11,6 +11,7 @@
 //! A missing, truncated, malformed or mismatched file is a [`ModelError`]
 //! naming the file, raised at load (before any capture).
 
+pub mod ddim;
 pub mod tiles;
 
 use std::path::{Path, PathBuf};
@@ -135,6 +136,20 @@ pub struct Model {
     /// The ONNX file.
     pub path: PathBuf,
     plan: Arc<TypedSimplePlan>,
+}
+
+impl Model {
+    /// Whether the network was trained for these fringes: the same periods
+    /// (to 1 ppm) in the same order, and the same steps per period.
+    pub fn trained_for(&self, periods_px: &[f64], steps: usize) -> bool {
+        let m = &self.meta;
+        m.steps_per_period == steps
+            && m.periods_px.len() == periods_px.len()
+            && m.periods_px
+                .iter()
+                .zip(periods_px)
+                .all(|(a, b)| (a - b).abs() <= 1e-6 * b.abs())
+    }
 }
 
 /// The metadata file beside `onnx` (`x.onnx` -> `x.json`).

@@ -337,6 +337,9 @@ pub enum ScanError {
     /// Restoring the underwater frames failed (or its parameters are bad).
     #[error("underwater restoration")]
     Restore(#[source] crate::underwater::RestoreError),
+    /// The learned underwater restorer failed to run.
+    #[error("learned underwater restoration")]
+    RestoreNetwork(#[source] crate::infer::ModelError),
     /// Triangulating through the flat ports failed.
     #[error("triangulation through the flat ports")]
     Port(#[source] crate::triangulation::flat_port::FlatPortError),

@@ -12,6 +12,7 @@
 //! depth error of centimetres that no restoration removes, so a water scan
 //! refuses a calibration without a port on every head.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use super::{capture::Captured, Exposures, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
@@ -19,6 +20,7 @@ use crate::calibration::{Head, RigCalibration};
 use crate::raster::Raster;
 use crate::reconstruct::{Reconstruction, Reconstructor};
 use crate::triangulation::flat_port::{FlatPort, PortTriangulator};
+use crate::underwater::learned::LearnedRestorer;
 use crate::underwater::{ClassicalRestorer, RestoreParams, Veil};
 use crate::unwrap::PixelStatus;
 
@@ -35,7 +37,7 @@ pub fn water_periods_px(dmd_width_px: u32) -> Vec<f64> {
 }
 
 /// What the heads look through.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default)]
 pub enum Medium {
     /// Air: pinhole triangulation, no restoration.
     #[default]
@@ -71,27 +73,31 @@ impl Turbidity {
 }
 
 /// How a water scan restores its fringes before decoding.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug)]
 pub enum Restorer {
     /// The frames as the cameras took them.
     None,
     /// [`crate::underwater::ClassicalRestorer`]: Wiener deconvolution with
     /// the forward-scatter Gaussian, then the set's veil floor subtracted.
     Classical,
+    /// A network trained on twin data ([`LearnedRestorer`]), loaded and
+    /// checked against the scan's fringes before capture.
+    Learned(Arc<LearnedRestorer>),
 }
 
 impl Restorer {
     /// Name for the report.
-    pub fn name(self) -> &'static str {
+    pub fn name(&self) -> &'static str {
         match self {
             Restorer::None => "none",
             Restorer::Classical => "classical",
+            Restorer::Learned(_) => "learned",
         }
     }
 }
 
 /// A scan under water.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct WaterScan {
     /// The level, when the user named one (for the report).
     pub turbidity: Option<Turbidity>,
@@ -151,7 +157,7 @@ pub fn check_before_capture(
             exposures: "adaptive under water",
         });
     }
-    if water.restorer == Restorer::Classical {
+    if let Restorer::Classical = water.restorer {
         RestoreParams::new(water.psf_sigma_px)
             .validate()
             .map_err(ScanError::Restore)?;
@@ -184,7 +190,7 @@ pub fn restore_captured(
     let sets: usize = captured.frames.iter().map(|f| f.len() / steps).sum();
     progress(Progress::Stage {
         name: "restore",
-        total: if water.restorer == Restorer::None {
+        total: if let Restorer::None = water.restorer {
             0
         } else {
             sets as u64
@@ -192,29 +198,51 @@ pub fn restore_captured(
     });
     for frames in &mut captured.frames {
         let before = frames.first().cloned();
-        if let (Restorer::Classical, Some(first)) = (water.restorer, frames.first()) {
-            // One restorer (FFT plans, Wiener gain) per camera: its frames share one size.
-            let params = RestoreParams::new(water.psf_sigma_px);
-            let r = ClassicalRestorer::new(first.width, first.height, params)
-                .map_err(ScanError::Restore)?;
-            for set in frames.chunks_mut(steps) {
-                let refs: Vec<&Raster<f32>> = set.iter().collect();
-                let restored = r
-                    .restore_set(&refs, Veil::Floor)
+        match (&water.restorer, frames.first()) {
+            (Restorer::Classical, Some(first)) => {
+                // One restorer (FFT plans, Wiener gain) per camera: its frames share one size.
+                let params = RestoreParams::new(water.psf_sigma_px);
+                let r = ClassicalRestorer::new(first.width, first.height, params)
                     .map_err(ScanError::Restore)?;
-                figures.frames += restored.len();
-                for (frame, out) in set.iter_mut().zip(restored) {
-                    figures.masked_px += out.masked;
-                    *frame = out.image;
-                    frame
-                        .data
-                        .iter_mut()
-                        .filter(|v| !v.is_finite())
-                        .for_each(|v| *v = 0.0);
+                for set in frames.chunks_mut(steps) {
+                    let refs: Vec<&Raster<f32>> = set.iter().collect();
+                    let restored = r
+                        .restore_set(&refs, Veil::Floor)
+                        .map_err(ScanError::Restore)?;
+                    figures.frames += restored.len();
+                    for (frame, out) in set.iter_mut().zip(restored) {
+                        figures.masked_px += out.masked;
+                        *frame = out.image;
+                    }
+                    figures.sets += 1;
+                    progress(Progress::Step);
                 }
-                figures.sets += 1;
-                progress(Progress::Step);
             }
+            (Restorer::Learned(net), Some(_)) => {
+                for set in frames.chunks_mut(steps) {
+                    let refs: Vec<&Raster<f32>> = set.iter().collect();
+                    let seed = figures.sets as u64;
+                    let (restored, run) = net
+                        .restore_set(&refs, seed)
+                        .map_err(ScanError::RestoreNetwork)?;
+                    figures.frames += restored.len();
+                    figures.evaluations += run.evaluations;
+                    for (frame, out) in set.iter_mut().zip(restored) {
+                        figures.masked_px += out.data.iter().filter(|v| !v.is_finite()).count();
+                        *frame = out;
+                    }
+                    figures.sets += 1;
+                    progress(Progress::Step);
+                }
+            }
+            _ => {}
+        }
+        for frame in frames.iter_mut() {
+            frame
+                .data
+                .iter_mut()
+                .filter(|v| !v.is_finite())
+                .for_each(|v| *v = 0.0);
         }
         if let (Some(before), Some(after)) = (before, frames.first()) {
             figures.samples.push((before, after.clone()));

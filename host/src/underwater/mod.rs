@@ -21,7 +21,9 @@
 //! triangulation's concern), and a per-pixel attenuation gain (it needs the
 //! depth the scan has not measured yet).
 
+pub mod learned;
 pub mod restore;
+pub mod score;
 
 pub use restore::{
     restore_classical, ClassicalRestorer, RestoreError, RestoreParams, Restored, Veil,

@@ -160,8 +160,9 @@ pub struct Args {
     /// default: the shipped one-step network, models/dealias_onestep.onnx.
     #[arg(long)]
     dealias_model: Option<PathBuf>,
-    /// --dealias learned with a diffusion model: DDIM sampler steps
-    /// (network evaluations per tile; the published DDPM used 4000).
+    /// --dealias learned or --restorer learned with a diffusion model: DDIM
+    /// sampler steps (network evaluations per tile; seed 000's DDPM used
+    /// 4000, seed 002's 1000).
     #[arg(long, default_value_t = 8)]
     sampler_steps: usize,
     /// Adapt the projection to the surface (sequential mode): `hdr` takes 7
@@ -194,6 +195,10 @@ pub struct Args {
     /// --medium water: how each fringe set is restored before decoding.
     #[arg(long, value_enum, default_value_t = RestorerArg::Classical)]
     restorer: RestorerArg,
+    /// --medium water, --restorer learned: the ONNX network (its .json
+    /// metadata beside it); default: models/underwater_onestep.onnx.
+    #[arg(long)]
+    restorer_model: Option<PathBuf>,
     /// --medium water, classical restorer: forward-scatter PSF sigma, camera
     /// pixels (--sim default: the level's rate over a nominal 0.47 m
     /// camera-side water path; required on hardware).
@@ -242,13 +247,19 @@ enum RestorerArg {
     /// Wiener deconvolution with the forward-scatter Gaussian, then the
     /// set's backscatter veil floor subtracted.
     Classical,
+    /// A network trained on twin data (--restorer-model; diffusion models
+    /// take --sampler-steps).
+    Learned,
 }
 
 /// `--medium`, `--turbidity`, `--restorer`, `--water-psf-sigma-px`; the PSF
 /// defaults to `default_psf_sigma_px` of the level (the simulator's), and
-/// without one a classical restorer needs `--water-psf-sigma-px`.
+/// without one a classical restorer needs `--water-psf-sigma-px`; a
+/// learned restorer is loaded and checked against `periods_px` here, before
+/// any capture.
 fn medium_for(
     args: &Args,
+    periods_px: &[f64],
     default_psf_sigma_px: impl Fn(Turbidity) -> Option<f64>,
 ) -> anyhow::Result<Medium> {
     let turbidity = args.turbidity.map(Turbidity::from);
@@ -263,13 +274,23 @@ fn medium_for(
     let restorer = match args.restorer {
         RestorerArg::None => Restorer::None,
         RestorerArg::Classical => Restorer::Classical,
+        RestorerArg::Learned => {
+            let path = shipped_model(args.restorer_model.as_deref(), DEFAULT_RESTORER_MODEL);
+            let net = slscan::underwater::learned::LearnedRestorer::load(
+                &path,
+                periods_px,
+                4,
+                args.sampler_steps,
+            )?;
+            Restorer::Learned(std::sync::Arc::new(net))
+        }
     };
     let psf = args
         .water_psf_sigma_px
         .or_else(|| turbidity.and_then(&default_psf_sigma_px));
-    let psf_sigma_px = match (restorer, psf) {
+    let psf_sigma_px = match (&restorer, psf) {
         (_, Some(sigma)) => sigma,
-        (Restorer::None, None) => 0.0,
+        (Restorer::None | Restorer::Learned(_), None) => 0.0,
         (Restorer::Classical, None) => anyhow::bail!(
             "--restorer classical under water needs the forward-scatter PSF: give \
              --water-psf-sigma-px (camera pixels), or --restorer none"
@@ -475,7 +496,7 @@ fn scan_sim(
     scan.learned = load_network(args, mode, &scan.periods_px, scan.steps)?;
     scan.exposures = exposures_for(args);
     scan.saturation_level = args.saturation_level;
-    scan.medium = medium_for(args, |level| {
+    scan.medium = medium_for(args, &scan.periods_px, |level| {
         Some(slscan::sim::underwater::nominal_psf_sigma_px(level))
     })?;
     if let (Medium::Water(water), Exposures::Single) = (&scan.medium, &scan.exposures) {
@@ -752,13 +773,27 @@ fn hardware_config(
     config.learned = load_network(args, mode, &config.periods_px, config.steps)?;
     config.exposures = exposures_for(args);
     config.saturation_level = args.saturation_level;
-    config.medium = medium_for(args, |_| None)?;
+    config.medium = medium_for(args, &config.periods_px, |_| None)?;
     Ok(config)
 }
 
-/// The shipped one-step de-aliaser, found beside the sources when the
-/// working directory is elsewhere.
+/// The shipped one-step de-aliaser.
 const DEFAULT_MODEL: &str = "models/dealias_onestep.onnx";
+
+/// The shipped underwater restorer.
+const DEFAULT_RESTORER_MODEL: &str = "models/underwater_onestep.onnx";
+
+/// `given`, or the shipped model `default` (a path from the repository
+/// root), found beside the sources when the working directory is elsewhere.
+fn shipped_model(given: Option<&Path>, default: &str) -> PathBuf {
+    match given {
+        Some(p) => p.to_path_buf(),
+        None if Path::new(default).exists() => PathBuf::from(default),
+        None => Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("..")
+            .join(default),
+    }
+}
 
 /// `--dealias learned` in the simultaneous mode: the network, loaded and
 /// checked against the scan's fringes before anything is captured.
@@ -771,13 +806,7 @@ fn load_network(
     if mode != Mode::Simultaneous || DealiasMethod::from(args.dealias) != DealiasMethod::Learned {
         return Ok(None);
     }
-    let path = match &args.dealias_model {
-        Some(p) => p.clone(),
-        None if Path::new(DEFAULT_MODEL).exists() => PathBuf::from(DEFAULT_MODEL),
-        None => Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("..")
-            .join(DEFAULT_MODEL),
-    };
+    let path = shipped_model(args.dealias_model.as_deref(), DEFAULT_MODEL);
     let network = slscan::dealias::learned::LearnedDealiaser::load(
         &path,
         periods_px,
