@@ -282,6 +282,12 @@ fn medium_for(
                 4,
                 args.sampler_steps,
             )?;
+            tracing::warn!(
+                model = %path.display(),
+                "learned underwater restoration: better fringes than classical on held-out sets, \
+                 but in a whole scan its depths are wrong (models/README.md); use --restorer \
+                 classical for measurement"
+            );
             Restorer::Learned(std::sync::Arc::new(net))
         }
     };
