@@ -2,6 +2,11 @@
 //! `training/dealias/sampling.py` and deterministic DDIM over an
 //! x0-predicting denoiser, shared by every learned module.
 
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+
+use super::{Model, ModelError};
+
 /// The cosine schedule's alpha-bar at `t` in [0, 1] (offset `s`).
 pub fn alpha_bar(t: f64, s: f64) -> f64 {
     let f = |x: f64| {
@@ -35,6 +40,22 @@ pub fn ddim<E>(
         }
     }
     Ok(x0)
+}
+
+/// One tile of a diffusion `model`: deterministic DDIM over `steps`
+/// evaluations from noise seeded by `seed`, conditioned on `cond`.
+pub fn sample_tile(
+    model: &Model,
+    cond: &[f32],
+    steps: usize,
+    seed: u64,
+) -> Result<Vec<f32>, ModelError> {
+    let meta = &model.meta;
+    let s = meta.schedule.as_ref().map_or(0.008, |s| s.s);
+    let n = meta.frame_channels * meta.tile * meta.tile;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise: Vec<f32> = (0..n).map(|_| StandardNormal.sample(&mut rng)).collect();
+    ddim(noise, steps, s, |x, t| model.run(&[cond, x, &[t]]))
 }
 
 #[cfg(test)]

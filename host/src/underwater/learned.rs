@@ -12,10 +12,7 @@
 
 use std::path::Path;
 
-use rand::SeedableRng;
-use rand_distr::{Distribution, StandardNormal};
-
-use crate::infer::ddim::ddim;
+use crate::infer::ddim::sample_tile;
 use crate::infer::tiles::{infer_tiled, Planes};
 use crate::infer::{Model, ModelError};
 use crate::raster::Raster;
@@ -158,7 +155,12 @@ impl LearnedRestorer {
             SET_FRAMES,
             |k, tile| {
                 if meta.kind == "diffusion" {
-                    self.sample_tile(tile, seed ^ (k as u64).wrapping_mul(0x9E37_79B9))
+                    sample_tile(
+                        &self.model,
+                        tile,
+                        self.sampler_steps,
+                        seed ^ (k as u64).wrapping_mul(0x9E37_79B9),
+                    )
                 } else {
                     self.model.run(&[tile])
                 }
@@ -189,18 +191,6 @@ impl LearnedRestorer {
             evaluations: tiled.tiles * self.evaluations_per_tile(),
         };
         Ok((restored, run))
-    }
-
-    /// Deterministic DDIM from seeded noise over one tile.
-    fn sample_tile(&self, cond: &[f32], seed: u64) -> Result<Vec<f32>, ModelError> {
-        let meta = &self.model.meta;
-        let s = meta.schedule.as_ref().map_or(0.008, |s| s.s);
-        let n = meta.frame_channels * meta.tile * meta.tile;
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let noise: Vec<f32> = (0..n).map(|_| StandardNormal.sample(&mut rng)).collect();
-        ddim(noise, self.sampler_steps, s, |x, t| {
-            self.model.run(&[cond, x, &[t]])
-        })
     }
 }
 
