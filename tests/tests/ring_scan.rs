@@ -38,6 +38,8 @@ fn four_heads_multiplexed_register_jointly_and_fuse_to_more_than_any_head() {
         registration.iterations
     );
     assert!(registration.converged, "{registration:?}");
+    // The true devices pass the calibration self-check.
+    assert_eq!(registration.verdict, "consistent", "{registration:?}");
     let fused_coverage = report.fused.coverage.unwrap();
     for h in &report.heads {
         let coverage = h.coverage.unwrap();
@@ -127,4 +129,22 @@ fn identical_sequences_on_four_projectors_are_refused_before_capture() {
         ),
         "{err:?}"
     );
+}
+
+/// Adaptive projection takes the heads one after another, so it runs on
+/// four heads as on two: each head gets its own floods, adaptation and
+/// exposure (the capture once stopped at head B and indexed past it).
+#[test]
+fn adaptive_projection_adapts_each_of_four_heads() {
+    let mut config = SimScanConfig::new("ring-4");
+    config.scan.camera_px = (160, 120);
+    config.scan.exposures =
+        slscan::scan::Exposures::AdaptiveHdr(slscan::adaptive::hdr::HdrParams::default());
+    let result = slscan::sim::scan::run_sim(&config, &mut |_| {}).expect("ring-4 adaptive");
+    assert_eq!(result.heads.len(), 4);
+    for h in &result.heads {
+        let adaptive = h.adaptive.as_ref().expect("every head adapted");
+        assert!(adaptive.exposure.scale > 0.0, "head {}", h.name);
+        assert!(!h.reconstruction.cloud.is_empty(), "head {}", h.name);
+    }
 }

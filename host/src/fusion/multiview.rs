@@ -37,7 +37,10 @@ use super::icp::IcpParams;
 use super::merge::{merge_clouds, MergeParams, MergeReport};
 use super::normals::estimate_normals;
 use super::robust::mad_scale;
-use super::{build_tree, morton_order, nearest_within, FusionError, PointCloud, Tree};
+use super::{
+    build_tree, morton_order, nearest_within, shape_agreement, FusionError, PointCloud,
+    ShapeAgreement, Tree, AGREEMENT_CELL_M,
+};
 
 /// Settings of [`register_views`].
 #[derive(Debug, Clone, PartialEq)]
@@ -116,6 +119,9 @@ pub struct PairReport {
     pub inliers: usize,
     /// RMS point-to-plane residual of the inliers, metres (NaN without inliers).
     pub overlap_rmse_m: f64,
+    /// How well the two clouds agree in shape over the overlap (`None`
+    /// when no cell of it has enough points), as for two heads.
+    pub agreement: Option<ShapeAgreement>,
 }
 
 /// What [`register_views`] found.
@@ -549,8 +555,10 @@ fn report(
             heads,
             inliers: 0,
             overlap_rmse_m: 0.0,
+            agreement: None,
         })
         .collect();
+    let mut residuals: Vec<Vec<(Vector3<f64>, f64)>> = vec![Vec::new(); edges.len()];
     for (i, j, scale, corr) in &gathered {
         let key = ((*i).min(*j), (*i).max(*j));
         // Every gathered pair comes from an edge, so this always finds it.
@@ -561,13 +569,15 @@ fn report(
             if p.robust.weight(c.r, *scale) > 0.0 {
                 pairs[e].inliers += 1;
                 pairs[e].overlap_rmse_m += c.r * c.r;
+                residuals[e].push((c.x, c.r));
                 matched[*i][c.source] = true;
                 centroid[*i].0 += c.x;
                 centroid[*i].1 += 1;
             }
         }
     }
-    for r in &mut pairs {
+    for (r, residuals) in pairs.iter_mut().zip(&residuals) {
+        r.agreement = shape_agreement(residuals, AGREEMENT_CELL_M, gate);
         // No inliers left at the final gate (heads whose rims came within
         // the initial gate only): no figure, rather than a perfect 0.
         r.overlap_rmse_m = if r.inliers == 0 {

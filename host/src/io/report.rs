@@ -78,6 +78,11 @@ pub struct MultiViewReport {
     pub iterations: usize,
     /// Converged before the iteration limit.
     pub converged: bool,
+    /// The calibration's check that needs no truth: "consistent", "head-to-head
+    /// pose off" (a head's correction past 0.3 deg / 2 mm) or "camera
+    /// intrinsics or projector model off" (a pair past 1.5x its noise or 30 um
+    /// of shape).
+    pub verdict: String,
     /// Per overlapping pair of heads, at the registered poses.
     pub pairs: Vec<PairReport>,
 }
@@ -91,6 +96,11 @@ pub struct PairReport {
     pub inliers: usize,
     /// RMS point-to-plane residual of the inliers, micrometres.
     pub overlap_rmse_um: f64,
+    /// What the two heads' predicted per-point noise gives for it, micrometres.
+    pub predicted_overlap_um: Option<f64>,
+    /// Systematic shape disagreement over the overlap, micrometres (null
+    /// when too small an overlap to tell).
+    pub shape_disagreement_um: Option<f64>,
 }
 
 /// How a head's fringes were exposed and what the exposure left.

@@ -4,9 +4,7 @@
 //! each running the adaptation of [`crate::adaptive`] between its board
 //! runs.
 
-use protocol::HeadSet;
-
-use super::capture::{for_projector, run, Captured};
+use super::capture::{for_projector, head_set, run, Captured};
 use super::exposure::{below_floor, modulation_floor, saturated_pixels};
 use super::{head_reconstructor, plan, Progress, ScanConfig, ScanError, HEAD_NAMES};
 use crate::adaptive::colour::{
@@ -64,8 +62,8 @@ pub(super) fn hdr<R: Board + Projector + Camera>(
     let preliminary = for_projector(preliminary, config);
     let heads = calibration.heads.len();
     let (mut raw, mut adaptive) = (Vec::new(), Vec::new());
-    for (h, set) in [HeadSet::A, HeadSet::B].into_iter().take(heads).enumerate() {
-        let name = ["capture A", "capture B"][h];
+    for (h, &head) in HEAD_NAMES.iter().enumerate().take(heads) {
+        let (set, name) = head_set(h, heads)?;
         progress(Progress::Stage { name, total: 4 });
         rig.load_sequence(h, &preliminary)?;
         run(
@@ -82,10 +80,7 @@ pub(super) fn hdr<R: Board + Projector + Camera>(
         let refs: Vec<&Raster<f32>> = full.iter().collect();
         let before = rc
             .reconstruct(&refs, None)
-            .map_err(|source| ScanError::Reconstruct {
-                head: HEAD_NAMES[h],
-                source,
-            })?;
+            .map_err(|source| ScanError::Reconstruct { head, source })?;
         let flood_refs: Vec<&Raster<f32>> = floods.iter().collect();
         let adaptation = adapt(
             &flood_refs,
@@ -146,8 +141,7 @@ fn colour_images<R: Board + Projector + Camera>(
     planes: &[Raster<f32>],
     scale: f64,
 ) -> Result<Vec<Raster<f32>>, ScanError> {
-    let set = [HeadSet::A, HeadSet::B][h];
-    let name = ["capture A", "capture B"][h];
+    let (set, name) = head_set(h, h + 1)?;
     let images = planes.len() / 3;
     // The most images per run a plan holds at this exposure.
     let mut per_run = images.max(1);
@@ -189,7 +183,7 @@ pub(super) fn colour<R: Board + Projector + Camera>(
     let (mut raw, mut adaptive) = (Vec::new(), Vec::new());
     let mut images = 0;
     for h in 0..heads {
-        let name = ["capture A", "capture B"][h];
+        let (_, name) = head_set(h, heads)?;
         progress(Progress::Stage { name, total: 4 });
         let floods = colour_images(rig, config, h, &flood_set, 1.0)?;
         progress(Progress::Step);

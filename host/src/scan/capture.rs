@@ -132,8 +132,8 @@ fn sequential<R: Board + Projector + Camera>(
         config,
     );
     let mut raw = Vec::new();
-    for (h, name) in CAPTURE_STAGES.into_iter().enumerate().take(heads) {
-        let set = HeadSet::single(h).ok_or(ScanError::HeadCount { heads })?;
+    for h in 0..heads {
+        let (set, name) = head_set(h, heads)?;
         progress(Progress::Stage {
             name,
             total: 2 * scales.len() as u64,
@@ -219,6 +219,13 @@ fn simultaneous<R: Board + Projector + Camera>(
         noise_factor: 1.0,
         flat: Some(flat),
     })
+}
+
+/// Head `h`'s trigger set and progress stage name in a capture of `heads`
+/// heads one after another; past the protocol's heads, a typed error.
+pub(super) fn head_set(h: usize, heads: usize) -> Result<(HeadSet, &'static str), ScanError> {
+    let set = HeadSet::single(h).ok_or(ScanError::HeadCount { heads })?;
+    Ok((set, CAPTURE_STAGES[h]))
 }
 
 /// Progress stage names of the sequential capture, per head.

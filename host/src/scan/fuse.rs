@@ -42,6 +42,8 @@ pub struct HeadsFused {
     pub a_from_head: Vec<Isometry3<f64>>,
     /// The calibration's checks that need no truth (with ICP).
     pub self_check: Option<SelfCheck>,
+    /// The same for three or four heads (with a registration).
+    pub views_check: Option<self_check::ViewsCheck>,
     /// Why the heads could not be fused.
     pub failure: Option<String>,
 }
@@ -66,6 +68,7 @@ pub fn fuse_heads(
             views: None,
             a_from_head: vec![Isometry3::identity()],
             self_check: None,
+            views_check: None,
             failure: None,
         });
     };
@@ -94,6 +97,7 @@ pub fn fuse_heads(
                 views: None,
                 a_from_head: vec![Isometry3::identity(), a_from_b_used],
                 self_check,
+                views_check: None,
                 failure: None,
             })
         }
@@ -106,6 +110,7 @@ pub fn fuse_heads(
                 views: None,
                 a_from_head: vec![Isometry3::identity(), a_from_b_calibrated],
                 self_check: None,
+                views_check: None,
                 failure: Some(why),
             })
         }

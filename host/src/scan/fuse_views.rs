@@ -9,7 +9,7 @@ use nalgebra::Isometry3;
 
 use super::clouds::{from_fusion, to_fusion, transformed, with_head_attributes};
 use super::fuse::{fuse_params, HeadsFused};
-use super::{ScanConfig, ScanError, HEAD_NAMES};
+use super::{self_check, ScanConfig, ScanError, HEAD_NAMES};
 use crate::calibration::RigCalibration;
 use crate::fusion::{merge_clouds_indexed, register_views, MultiViewParams, MultiViewResult};
 use crate::point_cloud::PointCloud;
@@ -45,11 +45,15 @@ pub fn fuse_views(
                 views: None,
                 a_from_head: calibrated,
                 self_check: None,
+                views_check: None,
                 failure: Some(why),
             });
         }
     };
     log_registration(&result);
+    let predicted: Vec<f64> = recons.iter().map(super::measure::predicted_rms_m).collect();
+    let check = self_check::check_views(&result, &predicted);
+    warnings.extend(self_check::views_warning(&check, &HEAD_NAMES));
     if !result.converged {
         warnings.push(format!(
             "multi-view registration did not converge in {} iterations (last step {:.4} deg / \
@@ -67,6 +71,7 @@ pub fn fuse_views(
         views: Some(result),
         a_from_head,
         self_check: None,
+        views_check: Some(check),
         failure: None,
     })
 }

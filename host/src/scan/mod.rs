@@ -434,6 +434,8 @@ pub struct FusedResult {
     pub truth: Option<FusedTruth>,
     /// The calibration's checks that need no truth (two heads with ICP).
     pub self_check: Option<self_check::SelfCheck>,
+    /// The same for three or four heads (with a registration).
+    pub views_check: Option<self_check::ViewsCheck>,
     /// Why the heads could not be fused (then the cloud is empty and only
     /// the per-head clouds and the report are written).
     pub failure: Option<String>,
@@ -677,6 +679,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         views,
         a_from_head,
         self_check,
+        views_check,
         failure: fusion_failure,
     } = fuse::fuse_heads(&recons, calibration, config, &mut warnings)?;
     progress(Progress::Step);
@@ -746,6 +749,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             views,
             truth: fused_truth,
             self_check,
+            views_check,
             failure: fusion_failure,
         },
         surface_samples,

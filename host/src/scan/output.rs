@@ -239,18 +239,26 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                 iterations: icp.iterations,
                 converged: icp.converged,
             }),
-            registration: scan.fused.views.as_ref().map(|v| MultiViewReport {
-                iterations: v.iterations,
-                converged: v.converged,
-                pairs: v
-                    .pairs
-                    .iter()
-                    .map(|p| PairReport {
-                        heads: format!("{}-{}", HEAD_NAMES[p.heads.0], HEAD_NAMES[p.heads.1]),
-                        inliers: p.inliers,
-                        overlap_rmse_um: p.overlap_rmse_m * um,
-                    })
-                    .collect(),
+            registration: scan.fused.views.as_ref().map(|v| {
+                let check = scan.fused.views_check.as_ref();
+                let pair_check = |heads| check?.pairs.iter().find(|c| c.heads == heads);
+                MultiViewReport {
+                    iterations: v.iterations,
+                    converged: v.converged,
+                    verdict: check.map_or("not checked", |c| c.verdict.name()).into(),
+                    pairs: v
+                        .pairs
+                        .iter()
+                        .map(|p| PairReport {
+                            heads: format!("{}-{}", HEAD_NAMES[p.heads.0], HEAD_NAMES[p.heads.1]),
+                            inliers: p.inliers,
+                            overlap_rmse_um: p.overlap_rmse_m * um,
+                            predicted_overlap_um: pair_check(p.heads)
+                                .map(|c| c.predicted_overlap_m * um),
+                            shape_disagreement_um: p.agreement.map(|a| a.systematic_rms_m * um),
+                        })
+                        .collect(),
+                }
             }),
             pose_error_vs_truth_deg: scan
                 .fused

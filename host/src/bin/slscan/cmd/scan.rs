@@ -958,13 +958,14 @@ fn print_registration(report: &ScanReport) {
         return;
     };
     println!(
-        "multi-view registration: {} in {} iterations",
+        "multi-view registration: {} in {} iterations; self-check: {}",
         if r.converged {
             "converged"
         } else {
             "did NOT converge"
         },
-        r.iterations
+        r.iterations,
+        r.verdict
     );
     for h in &report.heads {
         if let Some(g) = &h.registration {
@@ -981,8 +982,12 @@ fn print_registration(report: &ScanReport) {
     }
     for p in &r.pairs {
         println!(
-            "  heads {}: overlap RMSE {:.1} um over {} point pairs",
-            p.heads, p.overlap_rmse_um, p.inliers
+            "  heads {}: overlap RMSE {:.1} um over {} point pairs (noise predicts {}), shape disagreement {}",
+            p.heads,
+            p.overlap_rmse_um,
+            p.inliers,
+            figure(p.predicted_overlap_um, 1, "um"),
+            figure(p.shape_disagreement_um, 1, "um")
         );
     }
 }
