@@ -22,7 +22,7 @@ use protocol::HeadSet;
 use super::adaptive_capture;
 pub use super::adaptive_capture::AdaptiveRecord;
 use super::aliasing::{camera_lighting, AliasParams, FlatFields};
-use super::exposure::Exposures;
+use super::exposure::{auto_exposure_scale, AutoExposure, Exposures};
 use super::{plan, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
 use crate::calibration::RigCalibration;
 use crate::dealias::{
@@ -33,7 +33,7 @@ use crate::demultiplex::{
     demultiplex_heads, smallest_safe_head_bins, DemuxError, HeadBins, GAMMA_HARMONICS,
 };
 use crate::raster::Raster;
-use crate::rig::{Board, Camera, Projector};
+use crate::rig::{Board, Camera, Projector, RigError};
 
 /// Frames ready for the 4-step (or N-step) reconstruction, per head.
 pub struct Captured {
@@ -71,8 +71,9 @@ pub fn capture<R: Board + Projector + Camera>(
     let heads = calibration.heads.len();
     match config.mode {
         Mode::Sequential => match &config.exposures {
-            Exposures::Single => sequential(rig, config, heads, &[1.0], progress),
-            Exposures::Multi(scales) => sequential(rig, config, heads, scales, progress),
+            Exposures::Single => sequential(rig, config, heads, &Fixed(&[1.0]), progress),
+            Exposures::Multi(scales) => sequential(rig, config, heads, &Fixed(scales), progress),
+            Exposures::Auto(rule) => sequential(rig, config, heads, &Auto(rule), progress),
             Exposures::AdaptiveHdr(params) => {
                 adaptive_capture::hdr(rig, config, calibration, params, progress)
             }
@@ -117,13 +118,57 @@ pub(super) fn run(
     Ok(())
 }
 
+/// The exposure scales of a sequential head's fringe sets.
+enum SequentialExposure<'a> {
+    /// The same scales for every head.
+    Fixed(&'a [f64]),
+    /// One scale per head, from a white flood ([`auto_exposure_scale`]).
+    Auto(&'a AutoExposure),
+}
+use SequentialExposure::{Auto, Fixed};
+
+impl SequentialExposure<'_> {
+    /// Head `h`'s scales and the preliminary images taken to choose them
+    /// (the white flood leaves the projector loaded with it).
+    fn scales<R: Board + Projector + Camera>(
+        &self,
+        rig: &mut R,
+        config: &ScanConfig,
+        h: usize,
+        set: HeadSet,
+        name: &str,
+    ) -> Result<(Vec<f64>, usize), ScanError> {
+        let rule = match self {
+            Fixed(scales) => return Ok((scales.to_vec(), 0)),
+            Auto(rule) => rule,
+        };
+        rig.load_sequence(
+            h,
+            &for_projector(plan::floods(config.projector_px, &[1.0]), config),
+        )?;
+        run(rig, &plan::one_pattern_per_exposure(set, 1)?, name)?;
+        let white = rig.take_frames(h)?;
+        let white = white.first().ok_or(RigError::FrameCount {
+            head: h,
+            expected: 1,
+            got: 0,
+            missed: Vec::new(),
+        })?;
+        let range = (plan::MIN_EXPOSURE_SCALE, plan::MAX_EXPOSURE_SCALE);
+        let scale = auto_exposure_scale(white, rule, range);
+        tracing::info!(head = HEAD_NAMES[h], scale, "auto exposure");
+        Ok((vec![scale], 1))
+    }
+}
+
 /// Head A alone, then head B alone, and so on, each taking the fringe set
-/// once per exposure scale (one board run each).
+/// once per exposure scale (one board run each), the scales fixed or
+/// chosen per head.
 fn sequential<R: Board + Projector + Camera>(
     rig: &mut R,
     config: &ScanConfig,
     heads: usize,
-    scales: &[f64],
+    exposure: &SequentialExposure,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Captured, ScanError> {
     let count = config.periods_px.len() * config.steps;
@@ -131,16 +176,17 @@ fn sequential<R: Board + Projector + Camera>(
         plan::fringe_sequence(config.projector_px, &config.periods_px, config.steps),
         config,
     );
-    let mut raw = Vec::new();
+    let (mut raw, mut set_scales, mut images) = (Vec::new(), Vec::new(), Vec::new());
     for h in 0..heads {
         let (set, name) = head_set(h, heads)?;
+        let (scales, preliminary) = exposure.scales(rig, config, h, set, name)?;
         progress(Progress::Stage {
             name,
             total: 2 * scales.len() as u64,
         });
         rig.load_sequence(h, &patterns)?;
         let mut taken = Vec::with_capacity(count * scales.len());
-        for &scale in scales {
+        for &scale in &scales {
             run(
                 rig,
                 &plan::one_pattern_per_scaled_exposure(set, count, scale)?,
@@ -151,13 +197,15 @@ fn sequential<R: Board + Projector + Camera>(
             progress(Progress::Step);
         }
         raw.push(taken);
+        images.push(preliminary + count * scales.len());
+        set_scales.push(scales);
         progress(Progress::Done);
     }
     Ok(Captured {
         frames: raw.clone(),
-        images: vec![count * scales.len(); heads],
+        images,
         raw,
-        set_scales: vec![scales.to_vec(); heads],
+        set_scales,
         adaptive: Vec::new(),
         steps: config.steps,
         noise_factor: 1.0,

@@ -16,6 +16,11 @@ use crate::unwrap::PixelStatus;
 pub enum Exposures {
     /// One fringe set at the standard exposure.
     Single,
+    /// One fringe set per head at an exposure chosen for that head from
+    /// one white flood at the standard exposure ([`auto_exposure_scale`]):
+    /// what a scanner's auto exposure does, so a dim or steep view is not
+    /// left under the fringe-order noise floor, nor a bright one clipped.
+    Auto(AutoExposure),
     /// The fringe set at each of these exposure scales (units of the
     /// standard exposure), each pixel taken from the set where it decoded
     /// with the largest modulation without saturating: the usual
@@ -37,6 +42,7 @@ impl Exposures {
     pub fn name(&self) -> &'static str {
         match self {
             Exposures::Single => "single",
+            Exposures::Auto(_) => "auto",
             Exposures::Multi(_) => "multi-exposure",
             Exposures::AdaptiveHdr(_) => "adaptive-hdr",
             Exposures::AdaptiveColour(_) => "adaptive-colour",
@@ -50,6 +56,75 @@ impl Exposures {
             Exposures::AdaptiveHdr(_) | Exposures::AdaptiveColour(_)
         )
     }
+}
+
+/// How [`Exposures::Auto`] chooses a head's exposure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AutoExposure {
+    /// Frame value (full scale 1) the chosen percentile of the lit pixels
+    /// of the white flood should reach: the fringes' peaks are the flood's
+    /// level, so this leaves that share of headroom under saturation.
+    pub target: f32,
+    /// Share of the lit pixels allowed above `target` (their brightest
+    /// `1 - percentile` may saturate and be masked: specular glints should
+    /// not darken the whole view).
+    pub percentile: f64,
+    /// Flood value under which a pixel counts as unlit (shadow, off the
+    /// projector's field): a few times the camera's noise.
+    pub min_lit: f32,
+}
+
+impl Default for AutoExposure {
+    /// 0.85 of full scale at the 99.5th percentile of pixels above 0.02.
+    fn default() -> Self {
+        Self {
+            target: 0.85,
+            percentile: 0.995,
+            min_lit: 0.02,
+        }
+    }
+}
+
+impl AutoExposure {
+    /// A target in (0, 1], a percentile in (0, 1] and an unlit level in
+    /// [0, target).
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = self.target > 0.0
+            && self.target <= 1.0
+            && self.percentile > 0.0
+            && self.percentile <= 1.0
+            && self.min_lit >= 0.0
+            && self.min_lit < self.target;
+        if ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "auto exposure needs a target in (0, 1], a percentile in (0, 1] and an unlit \
+                 level in [0, target): got {self:?}"
+            ))
+        }
+    }
+}
+
+/// The exposure scale (standard exposures) that brings `rule.percentile`
+/// of the lit pixels of `white` (a full-white flood at the standard
+/// exposure) to `rule.target`, within `range`. A view with no lit pixel
+/// keeps the standard exposure. Where the flood itself saturated, the
+/// percentile is only a lower bound of the light, so the scale is an upper
+/// bound: the fringes may still clip there (and are masked).
+pub fn auto_exposure_scale(white: &Raster<f32>, rule: &AutoExposure, range: (f64, f64)) -> f64 {
+    let mut lit: Vec<f32> = white
+        .data
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite() && *v >= rule.min_lit)
+        .collect();
+    if lit.is_empty() {
+        return 1.0_f64.clamp(range.0, range.1);
+    }
+    let rank = ((lit.len() - 1) as f64 * rule.percentile).round() as usize;
+    let (_, level, _) = lit.select_nth_unstable_by(rank, f32::total_cmp);
+    (f64::from(rule.target) / f64::from(*level)).clamp(range.0, range.1)
 }
 
 /// What a head's exposure left, in camera pixels.
@@ -212,6 +287,69 @@ mod tests {
     use super::*;
     use crate::calibration::PinholeModel;
     use crate::reconstruct::ReconstructConfig;
+
+    #[test]
+    fn auto_exposure_brings_the_bright_lit_pixels_to_the_target() {
+        let rule = AutoExposure::default();
+        let range = (1.0 / 32.0, 8.0);
+        // 1000 lit pixels at 0.1..0.5 and 1000 unlit at 0.01: the 99.5th
+        // percentile of the lit ones is 0.498, so 0.85 / 0.498.
+        let mut data: Vec<f32> = (0..1000).map(|i| 0.1 + 0.4 * i as f32 / 999.0).collect();
+        data.extend(std::iter::repeat_n(0.01, 1000));
+        let white = Raster {
+            width: 100,
+            height: 20,
+            data,
+        };
+        let scale = auto_exposure_scale(&white, &rule, range);
+        assert!((scale - 0.85 / 0.498).abs() < 0.01, "{scale}");
+        // A few glints do not darken the view; a bright view is shortened.
+        let mut glints = white.clone();
+        glints.data[..4].fill(1.0);
+        assert!((auto_exposure_scale(&glints, &rule, range) - scale).abs() < 0.01);
+        let bright = Raster::filled(10, 10, 0.97_f32);
+        assert!((auto_exposure_scale(&bright, &rule, range) - 0.85 / 0.97).abs() < 1e-6);
+        // A dark view stops at the plan's longest exposure; no light (or
+        // only NaN) keeps the standard one.
+        assert_eq!(
+            auto_exposure_scale(&Raster::filled(10, 10, 0.05_f32), &rule, range),
+            8.0
+        );
+        assert_eq!(
+            auto_exposure_scale(&Raster::filled(10, 10, 0.0_f32), &rule, range),
+            1.0
+        );
+        assert_eq!(
+            auto_exposure_scale(&Raster::filled(4, 4, f32::NAN), &rule, range),
+            1.0
+        );
+        // Settings out of range are refused.
+        assert!(rule.validate().is_ok());
+        for bad in [
+            AutoExposure {
+                target: 0.0,
+                ..rule
+            },
+            AutoExposure {
+                target: 1.5,
+                ..rule
+            },
+            AutoExposure {
+                percentile: 0.0,
+                ..rule
+            },
+            AutoExposure {
+                min_lit: 0.9,
+                ..rule
+            },
+            AutoExposure {
+                target: f32::NAN,
+                ..rule
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
+    }
 
     #[test]
     fn lost_pixels_and_unholdable_surfaces_are_warned_about() {

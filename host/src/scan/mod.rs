@@ -54,7 +54,7 @@ use crate::raster::Raster;
 use crate::reconstruct::{ReconstructError, Reconstruction};
 use crate::rig::{Board, Camera, Projector, RigError};
 use clouds::transformed;
-pub use exposure::{ExposureFigures, Exposures};
+pub use exposure::{AutoExposure, ExposureFigures, Exposures};
 use metrics::PixelAccuracy;
 pub(crate) use reconstruct_head::head_reconstructor;
 use reconstruct_head::reconstruct_head;
@@ -271,6 +271,9 @@ pub enum ScanError {
     /// A multi-exposure scan without exposures.
     #[error("a multi-exposure scan needs at least one exposure scale")]
     NoExposures,
+    /// Auto exposure's settings are out of range.
+    #[error("{0}")]
+    AutoExposure(String),
     /// Adaptive projection could not adapt (bad preliminaries or parameters).
     #[error("adaptive projection")]
     Adaptive(#[from] crate::adaptive::AdaptiveError),
@@ -540,6 +543,7 @@ pub fn check_before_capture(
         }
         Exposures::AdaptiveHdr(params) => params.validate()?,
         Exposures::AdaptiveColour(params) => params.validate()?,
+        Exposures::Auto(rule) => rule.validate().map_err(ScanError::AutoExposure)?,
     }
     let periods = config.periods_px.len();
     if config.mode == Mode::Simultaneous

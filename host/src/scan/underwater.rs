@@ -154,7 +154,7 @@ pub fn check_before_capture(
     if !matches!(config.exposures, Exposures::Single | Exposures::Multi(_)) {
         return Err(ScanError::ExposuresNeedSequential {
             mode: config.mode,
-            exposures: "adaptive under water",
+            exposures: "adaptive or auto exposure under water",
         });
     }
     if let Restorer::Classical = water.restorer {

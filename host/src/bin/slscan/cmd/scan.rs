@@ -176,6 +176,13 @@ pub struct Args {
     /// from its best unsaturated one.
     #[arg(long, value_delimiter = ',')]
     exposures: Option<Vec<f64>>,
+    /// Auto exposure (sequential mode): one white flood per head at the
+    /// standard exposure, then that head's fringes at the exposure that
+    /// brings the 99.5th percentile of its lit pixels to 0.85 of full scale
+    /// (1/32 to 8 standard exposures), so a dim or steep view reaches the
+    /// fringe-order noise floor and a bright one is not clipped.
+    #[arg(long, conflicts_with_all = ["exposures", "adaptive"])]
+    auto_exposure: bool,
     /// Frame value (0..1 of full scale) at and above which a sample counts
     /// as saturated; pixels with one are masked.
     #[arg(long, default_value_t = scan::DEFAULT_SATURATION_LEVEL)]
@@ -332,6 +339,9 @@ enum AdaptiveArg {
 
 /// `--adaptive` / `--exposures`: how each head's fringes are exposed.
 fn exposures_for(args: &Args) -> Exposures {
+    if args.auto_exposure {
+        return Exposures::Auto(scan::AutoExposure::default());
+    }
     match (&args.adaptive, &args.exposures) {
         (Some(AdaptiveArg::Hdr), _) => Exposures::AdaptiveHdr(HdrParams::default()),
         (Some(AdaptiveArg::Colour), _) => Exposures::AdaptiveColour(ColourParams::default()),
