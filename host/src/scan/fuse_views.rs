@@ -33,9 +33,17 @@ pub fn fuse_views(
     let result = match register_views(&views, &calibrated, &multi) {
         Ok(result) => result,
         Err(e) => {
+            // At one standard exposure a dim or steep view loses its pixels
+            // under the fringe-order noise floor, and with them the overlaps.
+            let hint = if config.exposures == super::Exposures::Single {
+                "; if the heads cover little of the part, --auto-exposure (or --exposures 4,1) \
+                 lifts dim views over the fringe-order noise floor"
+            } else {
+                ""
+            };
             let why = format!(
                 "the {} heads could not be registered ({e}); no fused cloud is written, the \
-                 per-head clouds are in their calibrated poses",
+                 per-head clouds are in their calibrated poses{hint}",
                 recons.len()
             );
             warnings.push(why.clone());
