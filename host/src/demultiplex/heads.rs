@@ -52,10 +52,37 @@ impl HeadBins {
 /// }
 /// ```
 pub fn demultiplex_heads(bins: &HeadBins, frames: &[&[f32]]) -> Result<HeadsImages, DemuxError> {
+    let all: Vec<usize> = (0..bins.bins().len()).collect();
+    demultiplex_selected(bins, frames, &all)
+}
+
+/// Head `head`'s phase and modulation and the background: what one camera
+/// of a multiplexed scan needs (its own head's bin and bin 0, not every
+/// head's DFT). `heads` of the result holds that one head.
+pub fn demultiplex_head(
+    bins: &HeadBins,
+    frames: &[&[f32]],
+    head: usize,
+) -> Result<HeadsImages, DemuxError> {
+    let heads = bins.bins().len();
+    if head >= heads {
+        return Err(DemuxError::NoSuchHead { head, heads });
+    }
+    demultiplex_selected(bins, frames, &[head])
+}
+
+/// [`demultiplex_heads`] for the heads `selected` (indices into the bins,
+/// in range), in that order.
+fn demultiplex_selected(
+    bins: &HeadBins,
+    frames: &[&[f32]],
+    selected: &[usize],
+) -> Result<HeadsImages, DemuxError> {
     let steps = bins.steps();
     let pixels = check_frames(frames, steps)?;
-    let tables: Vec<(Vec<f64>, Vec<f64>)> = (0..bins.bins().len())
-        .map(|h| {
+    let tables: Vec<(Vec<f64>, Vec<f64>)> = selected
+        .iter()
+        .map(|&h| {
             let shifts = bins.shifts_rad(h).expect("head within the bins");
             (
                 shifts.iter().map(|d| d.cos()).collect(),
@@ -158,6 +185,24 @@ mod tests {
             }
             assert!(out.background.iter().all(|b| (b - 0.3).abs() < 1e-6));
         }
+    }
+
+    #[test]
+    fn one_head_alone_is_the_same_bits_as_all_heads() {
+        let bins = smallest_safe_head_bins(4, &GAMMA_HARMONICS, 32).unwrap();
+        let phase = |h: usize, i: usize| 0.4 * i as f64 - 0.9 * h as f64;
+        let f = frames(&bins, 23, phase);
+        let refs: Vec<&[f32]> = f.iter().map(|v| v.as_slice()).collect();
+        let all = demultiplex_heads(&bins, &refs).unwrap();
+        for h in 0..4 {
+            let one = demultiplex_head(&bins, &refs, h).unwrap();
+            assert_eq!(one.background, all.background);
+            assert_eq!(one.heads, vec![all.heads[h].clone()], "head {h}");
+        }
+        assert!(matches!(
+            demultiplex_head(&bins, &refs, 4),
+            Err(DemuxError::NoSuchHead { head: 4, heads: 4 })
+        ));
     }
 
     #[test]

@@ -40,7 +40,7 @@ pub use bins::{
     MIN_STEPS, ODD_HARMONICS,
 };
 pub use head_bins::{smallest_safe_head_bins, HeadBins, HeadBinsError, GAMMA_HARMONICS};
-pub use heads::{demultiplex_heads, HeadsImages};
+pub use heads::{demultiplex_head, demultiplex_heads, HeadsImages};
 
 use rayon::prelude::*;
 
@@ -80,6 +80,14 @@ pub enum DemuxError {
         harmonic: usize,
         /// Bin it lands on.
         lands_on_bin: usize,
+    },
+    /// A head the bins do not have.
+    #[error("head {head} asked of a multiplex of {heads} heads")]
+    NoSuchHead {
+        /// Head asked for.
+        head: usize,
+        /// Heads the bins hold.
+        heads: usize,
     },
     /// Wrong number of frames for the sequence.
     #[error("{got} frames for a {expected}-step sequence")]

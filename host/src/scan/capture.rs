@@ -30,7 +30,7 @@ use crate::dealias::{
     DealiasMethod, DealiasStats,
 };
 use crate::demultiplex::{
-    demultiplex_heads, smallest_safe_head_bins, DemuxError, HeadBins, GAMMA_HARMONICS,
+    demultiplex_head, smallest_safe_head_bins, DemuxError, HeadBins, GAMMA_HARMONICS,
 };
 use crate::raster::Raster;
 use crate::rig::{Board, Camera, Projector, RigError};
@@ -357,8 +357,8 @@ fn demultiplexed_frames(
     let mut out = Vec::new();
     for period in taken.chunks(n) {
         let slices: Vec<&[f32]> = period.iter().map(|r| r.data.as_slice()).collect();
-        let mut images = demultiplex_heads(bins, &slices)?;
-        let own = images.heads.swap_remove(head);
+        let mut images = demultiplex_head(bins, &slices, head)?;
+        let own = images.heads.swap_remove(0);
         let (w, h) = period[0].size();
         for step in 0..4 {
             let shift = std::f32::consts::FRAC_PI_2 * step as f32;
