@@ -150,6 +150,16 @@ impl Decoder {
         })
     }
 
+    /// The same decoder undoing the camera's colour crosstalk `m` (measured
+    /// from LED flats after the decoder was checked against the rig): only
+    /// the demultiplexer's unmixing changes; the rays and the reference
+    /// plane, the costly part of [`Decoder::new`], are kept.
+    pub fn with_crosstalk(mut self, m: nalgebra::Matrix3<f64>) -> Result<Self, HighSpeedError> {
+        self.demux = self.demux.with_crosstalk(m)?;
+        self.config.demux.crosstalk = Some(m);
+        Ok(self)
+    }
+
     /// The pattern set.
     pub fn set(&self) -> &PatternSet {
         &self.set

@@ -100,9 +100,7 @@ impl Demultiplexer {
             });
         }
         if let Some(m) = options.crosstalk {
-            if m.try_inverse().is_none() || m.iter().any(|v| !v.is_finite()) {
-                return Err(HighSpeedError::BadCrosstalk);
-            }
+            check_crosstalk(&m)?;
         }
         let frequencies: Vec<[f64; 2]> = set.patterns().iter().map(|p| p.frequency).collect();
         let colours: Vec<usize> = set.patterns().iter().map(|p| p.colour).collect();
@@ -121,6 +119,15 @@ impl Demultiplexer {
             windows,
             options,
         })
+    }
+
+    /// The same demultiplexer undoing the camera's colour crosstalk `m`
+    /// (measured from LED flats once the rig is up): the windows and the
+    /// FFT plans do not depend on it, so nothing else is rebuilt.
+    pub fn with_crosstalk(mut self, m: Matrix3<f64>) -> Result<Self, HighSpeedError> {
+        check_crosstalk(&m)?;
+        self.options.crosstalk = Some(m);
+        Ok(self)
     }
 
     /// Each pattern's window.
@@ -252,6 +259,14 @@ fn wrap(a: f32) -> f32 {
     } else {
         r
     }
+}
+
+/// A crosstalk matrix must be finite and invertible: its inverse unmixes.
+fn check_crosstalk(m: &Matrix3<f64>) -> Result<(), HighSpeedError> {
+    if m.try_inverse().is_none() || m.iter().any(|v| !v.is_finite()) {
+        return Err(HighSpeedError::BadCrosstalk);
+    }
+    Ok(())
 }
 
 /// The LEDs' light from the camera channels.
@@ -407,6 +422,40 @@ mod tests {
         };
         assert!(matches!(
             Demultiplexer::new(&set, 16, 16, identity_reference(16, 16), options),
+            Err(HighSpeedError::BadCrosstalk)
+        ));
+        // Adding the crosstalk to a built demultiplexer is the same as
+        // building it with it, and refuses the same matrices.
+        let plain = || {
+            Demultiplexer::new(
+                &set,
+                16,
+                16,
+                identity_reference(16, 16),
+                DemuxOptions::default(),
+            )
+            .unwrap()
+        };
+        let built = Demultiplexer::new(
+            &set,
+            16,
+            16,
+            identity_reference(16, 16),
+            DemuxOptions {
+                crosstalk: Some(m),
+                ..DemuxOptions::default()
+            },
+        )
+        .unwrap();
+        let added = plain().with_crosstalk(m).unwrap();
+        assert_eq!(added.options, built.options);
+        assert_eq!(added.windows(), built.windows());
+        assert!(matches!(
+            plain().with_crosstalk(Matrix3::zeros()),
+            Err(HighSpeedError::BadCrosstalk)
+        ));
+        assert!(matches!(
+            plain().with_crosstalk(Matrix3::from_element(f64::NAN)),
             Err(HighSpeedError::BadCrosstalk)
         ));
     }

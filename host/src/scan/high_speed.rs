@@ -223,13 +223,7 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
     progress(Progress::Done);
 
     // The flats' crosstalk goes into the decoder that reads the fringes.
-    let mut decoder_config = config.decoder;
-    decoder_config.demux.crosstalk = Some(crosstalk);
-    let decoder = if decoder_config == config.decoder {
-        decoder
-    } else {
-        Decoder::new(set.clone(), head, decoder_config)?
-    };
+    let decoder = decoder.with_crosstalk(crosstalk)?;
 
     progress(Progress::Stage {
         name: "capture",
