@@ -85,6 +85,13 @@ fn ring_4(mode: Mode, exposures: Exposures, name: &str) -> ScanReport {
     for file in ["scan.ply", "head_a.ply", "head_d.ply", "report.json"] {
         assert!(dir.join(file).is_file(), "{file}");
     }
+    // The page shows the registration and its check as report.json has them.
+    let page = std::fs::read_to_string(dir.join("report.html")).expect("report.html");
+    assert!(
+        page.contains("calibration self-check (no truth needed): consistent"),
+        "no registration row on the page"
+    );
+    assert!(page.contains("overlap A-B"), "no pair rows on the page");
     let _ = std::fs::remove_dir_all(&dir);
     report
 }

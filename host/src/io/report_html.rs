@@ -272,6 +272,19 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
                 ),
             ));
         }
+        if let Some(g) = &h.registration {
+            rows.push((
+                "multi-view registration".into(),
+                format!(
+                    "moved the calibrated pose {:.4} deg / {:.1} um, fitness {:.3}; pose vs truth {} / {}",
+                    g.rotation_deg,
+                    g.translation_um,
+                    g.fitness,
+                    fig(h.pose_error_vs_truth_deg, 4, "deg"),
+                    fig(h.pose_error_vs_truth_um, 1, "um")
+                ),
+            ));
+        }
         for s in &h.spheres {
             rows.push((
                 format!("sphere {}", s.name),
@@ -312,7 +325,35 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
                 }
             ),
         )),
-        None => rows.push(("ICP".into(), "none".into())),
+        None if f.registration.is_none() => rows.push(("ICP".into(), "none".into())),
+        None => {}
+    }
+    if let Some(r) = &f.registration {
+        rows.push((
+            "multi-view registration".into(),
+            format!(
+                "{} in {} iterations; calibration self-check (no truth needed): {}",
+                if r.converged {
+                    "converged"
+                } else {
+                    "not converged"
+                },
+                r.iterations,
+                r.verdict
+            ),
+        ));
+        for p in &r.pairs {
+            rows.push((
+                format!("overlap {}", p.heads),
+                format!(
+                    "RMSE {:.1} um over {} point pairs (noise predicts {}), shape disagreement {}",
+                    p.overlap_rmse_um,
+                    p.inliers,
+                    fig(p.predicted_overlap_um, 1, "um"),
+                    fig(p.shape_disagreement_um, 1, "um")
+                ),
+            ));
+        }
     }
     if let (Some(deg), Some(um)) = (f.pose_error_vs_truth_deg, f.pose_error_vs_truth_um) {
         rows.push((
