@@ -238,6 +238,47 @@ pub fn head_pictures(h: &HeadPictures) -> Result<Vec<Encoded>, image::ImageError
     Ok(out)
 }
 
+/// Frames side by side, 8 px apart (gap black), each stretched from its own
+/// 1st to 99th percentile of finite values to [0, 1] so a faint, veiled
+/// fringe shows as well as a restored one. Frames of unequal height are
+/// top-aligned.
+pub fn side_by_side(frames: &[&Raster<f32>]) -> Raster<f32> {
+    const GAP: usize = 8;
+    let height = frames.iter().map(|f| f.height).max().unwrap_or(0);
+    let width =
+        frames.iter().map(|f| f.width).sum::<usize>() + GAP * frames.len().saturating_sub(1);
+    let mut out = Raster::filled(width, height, 0.0f32);
+    let mut x0 = 0;
+    for f in frames {
+        let (lo, hi) = percentile_range(&f.data);
+        let scale = if hi > lo { 1.0 / (hi - lo) } else { 0.0 };
+        for y in 0..f.height {
+            let src = &f.data[y * f.width..(y + 1) * f.width];
+            let dst = &mut out.data[y * width + x0..y * width + x0 + f.width];
+            for (d, &s) in dst.iter_mut().zip(src) {
+                *d = if s.is_finite() {
+                    ((s - lo) * scale).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+            }
+        }
+        x0 += f.width + GAP;
+    }
+    out
+}
+
+/// The 1st and 99th percentiles of the finite values (0, 0 when none).
+fn percentile_range(values: &[f32]) -> (f32, f32) {
+    let mut v: Vec<f32> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if v.is_empty() {
+        return (0.0, 0.0);
+    }
+    v.sort_unstable_by(f32::total_cmp);
+    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+    (at(0.01), at(0.99))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -355,5 +396,25 @@ mod tests {
                 assert!(found, "{}: no {class:?} swatch", p.kind);
             }
         }
+    }
+
+    #[test]
+    fn side_by_side_stretches_each_frame_to_its_own_range_with_a_black_gap() {
+        let dim = Raster::from_fn(10, 4, |x, _| 0.10 + 0.01 * x as f32);
+        let mut bright = Raster::from_fn(6, 5, |x, _| 0.5 * x as f32);
+        bright.data[0] = f32::NAN;
+        let out = side_by_side(&[&dim, &bright]);
+        assert_eq!((out.width, out.height), (10 + 8 + 6, 5));
+        // Each frame spans [0, 1] after its own stretch.
+        let row = |y: usize, x0: usize, w: usize| out.data[y * out.width + x0..][..w].to_vec();
+        let left = row(1, 0, 10);
+        assert!(left[0] < 0.05 && left[9] > 0.95, "{left:?}");
+        assert!(left.windows(2).all(|w| w[0] <= w[1]));
+        let right = row(1, 18, 6);
+        assert!(right[0] < 0.05 && right[5] > 0.95, "{right:?}");
+        // Gap, the NaN pixel and the rows below the shorter frame are black.
+        assert!(row(1, 10, 8).iter().all(|&v| v == 0.0));
+        assert_eq!(out.data[18], 0.0);
+        assert!(row(4, 0, 10).iter().all(|&v| v == 0.0));
     }
 }

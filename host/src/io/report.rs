@@ -190,6 +190,13 @@ pub struct DealiasReport {
     pub network: Option<NetworkRunReport>,
     /// Wall time of this camera's de-aliasing, milliseconds.
     pub time_ms: u64,
+    /// RMS error of the separated overlap pixels of the first fringe frame
+    /// against the simulator's frame of the own projector alone, on the
+    /// 8-bit scale of seed 000's figures (null on hardware or with none).
+    pub error_vs_clean_rms_8bit: Option<f64>,
+    /// The picture of the first frame as captured, de-aliased, clean and the
+    /// error (null when no de-aliaser ran).
+    pub picture: Option<String>,
 }
 
 /// What a learned de-aliaser ran for one camera.

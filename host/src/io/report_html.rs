@@ -260,7 +260,7 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
             rows.push((
                 format!("de-aliasing ({})", d.method),
                 format!(
-                    "{} of {} overlap pixels separated ({} ill-posed, {} misfit, {} unsolved, {} inconsistent, {} bad input), {} ms",
+                    "{} of {} overlap pixels separated ({} ill-posed, {} misfit, {} unsolved, {} inconsistent, {} bad input), {} ms; first frame's error against the own projector alone {}",
                     d.separated_pixels,
                     d.attempted_pixels,
                     d.ill_posed_pixels,
@@ -268,7 +268,8 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
                     d.unsolved_pixels,
                     d.inconsistent_pixels,
                     d.bad_input_pixels,
-                    d.time_ms
+                    d.time_ms,
+                    fig(d.error_vs_clean_rms_8bit, 2, "(8-bit RMS)")
                 ),
             ));
         }

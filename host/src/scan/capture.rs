@@ -22,6 +22,7 @@ use protocol::HeadSet;
 use super::adaptive_capture;
 pub use super::adaptive_capture::AdaptiveRecord;
 use super::aliasing::{camera_lighting, AliasParams, FlatFields};
+use super::dealias_picture::DealiasSample;
 use super::exposure::{auto_exposure_scale, AutoExposure, Exposures};
 use super::{plan, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
 use crate::calibration::RigCalibration;
@@ -387,14 +388,15 @@ fn demultiplexed_frames(
 /// ([`crate::dealias`]) and the rest masked; with [`DealiasMethod::Mask`]
 /// all of them are masked (frames zeroed there, so the reconstruction masks
 /// them), with a loud warning. Returns each head's measured aliased overlap
-/// (lit by both; empty without flat fields) and its de-aliasing figures.
+/// (lit by both; empty without flat fields), its de-aliasing figures and,
+/// where a de-aliaser ran, its first frame before and after.
 pub fn resolve_measured_overlap(
     captured: &mut Captured,
     config: &ScanConfig,
     warnings: &mut Vec<String>,
-) -> Result<(Vec<Vec<bool>>, Vec<DealiasStats>), ScanError> {
+) -> Result<ResolvedOverlap, ScanError> {
     let Some(flat) = &captured.flat else {
-        return Ok((Vec::new(), Vec::new()));
+        return Ok(ResolvedOverlap::default());
     };
     let params = AliasParams::default();
     let solver = match config.dealias {
@@ -411,8 +413,11 @@ pub fn resolve_measured_overlap(
     };
     let mut overlaps = Vec::new();
     let mut all_stats = Vec::new();
+    let mut samples = Vec::new();
     for (h, (frames, flat)) in captured.frames.iter_mut().zip(flat).enumerate() {
         let started = std::time::Instant::now();
+        let steps = captured.steps;
+        let aliased: Vec<Raster<f32>> = frames.iter().take(steps).cloned().collect();
         let lit = camera_lighting(flat, h, &params);
         let both = lit.lit.both();
         let mask = &lit.unusable;
@@ -449,6 +454,7 @@ pub fn resolve_measured_overlap(
                     time_ms: started.elapsed().as_millis() as u64,
                     ..DealiasStats::default()
                 });
+                samples.push(None);
                 continue;
             }
         };
@@ -484,10 +490,31 @@ pub fn resolve_measured_overlap(
             );
             warnings.push(warning);
         }
+        samples.push(Some(DealiasSample {
+            aliased,
+            separated: frames.iter().take(steps).cloned().collect(),
+            overlap: both.clone(),
+            reference: None,
+        }));
         overlaps.push(both);
         all_stats.push(stats);
     }
-    Ok((overlaps, all_stats))
+    Ok(ResolvedOverlap {
+        overlaps,
+        stats: all_stats,
+        samples,
+    })
+}
+
+/// What [`resolve_measured_overlap`] found, per head.
+#[derive(Debug, Default)]
+pub struct ResolvedOverlap {
+    /// Pixels the flat fields show lit by both projectors.
+    pub overlaps: Vec<Vec<bool>>,
+    /// De-aliasing figures.
+    pub stats: Vec<DealiasStats>,
+    /// The first frame before and after, where a de-aliaser ran.
+    pub samples: Vec<Option<DealiasSample>>,
 }
 
 #[cfg(test)]

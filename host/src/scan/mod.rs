@@ -27,6 +27,7 @@ pub mod aliasing;
 pub mod calibration_file;
 pub mod capture;
 pub mod clouds;
+pub mod dealias_picture;
 pub mod exposure;
 mod fuse;
 mod fuse_views;
@@ -383,6 +384,9 @@ pub struct HeadResult {
     pub predicted_rms_m: f64,
     /// Simultaneous mode: what de-aliasing (or masking) the overlap did.
     pub dealias: Option<crate::dealias::DealiasStats>,
+    /// Simultaneous mode with a de-aliaser: its first frame before and
+    /// after (and the simulator's clean reference), for the picture.
+    pub dealias_sample: Option<dealias_picture::DealiasSample>,
     /// What the exposure left (saturated, below the modulation floor) and,
     /// adaptive, what it chose.
     pub exposure: ExposureFigures,
@@ -590,6 +594,13 @@ impl Clock {
         }
     }
 
+    /// Starts the next lap now: the time since the last lap was spent in
+    /// stages another clock timed (the simulator's after its scan).
+    #[cfg(feature = "sim")]
+    pub(crate) fn restart(&mut self) {
+        self.last = Instant::now();
+    }
+
     pub(crate) fn lap(&mut self, name: &'static str) {
         let now = Instant::now();
         let ms = (now - self.last).as_secs_f64() * 1e3;
@@ -628,8 +639,11 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         underwater::Medium::Air => None,
     };
     let mut warnings = Vec::new();
-    let (aliased_masks, dealias_stats) =
-        capture::resolve_measured_overlap(&mut captured, config, &mut warnings)?;
+    let capture::ResolvedOverlap {
+        overlaps: aliased_masks,
+        stats: dealias_stats,
+        samples: mut dealias_samples,
+    } = capture::resolve_measured_overlap(&mut captured, config, &mut warnings)?;
     if captured.flat.is_some() {
         clock.lap("de-alias");
     }
@@ -737,6 +751,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             predicted_rms_m: measure::predicted_rms_m(&recon),
             reconstruction: recon,
             dealias: dealias_stats.get(h).copied(),
+            dealias_sample: dealias_samples.get_mut(h).and_then(Option::take),
             exposure,
             adaptive,
             truth: head_truths[h].take(),

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use super::spheres::{centre_distance_error_m, SphereFigures};
-use super::{Mode, Progress, ScanResult, HEAD_NAMES};
+use super::{dealias_picture, Mode, Progress, ScanResult, HEAD_NAMES};
 use crate::io::cloud_render::{render_cloud, splat_radius_for, CloudView};
 use crate::io::images::{encode_rgb_png, save_bytes, save_gray_png, ImageError};
 use crate::io::outputs::{OutputSet, OutputSetError};
@@ -70,6 +70,7 @@ pub fn output_files() -> Vec<String> {
     }
     files.extend(CLOUD_VIEWS.map(|(name, ..)| format!("cloud_{name}.png")));
     files.extend(HEAD_NAMES.map(|h| super::underwater::picture_file(&h.to_lowercase())));
+    files.extend(HEAD_NAMES.map(|h| dealias_picture::picture_file(&h.to_lowercase())));
     for head in HEAD_NAMES {
         let tag = head.to_lowercase();
         files.extend((0..MAX_FLOODS).map(|i| flood_file(&tag, i)));
@@ -203,6 +204,14 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                             }
                         }),
                         time_ms: d.time_ms,
+                        error_vs_clean_rms_8bit: h
+                            .dealias_sample
+                            .as_ref()
+                            .and_then(|s| s.error_rms_8bit()),
+                        picture: h
+                            .dealias_sample
+                            .as_ref()
+                            .map(|_| dealias_picture::picture_file(&h.name.to_lowercase())),
                     }),
                     spheres: t
                         .map_or_else(Vec::new, |t| t.spheres.iter().map(sphere_report).collect()),
@@ -314,6 +323,48 @@ fn underwater_report(w: &super::underwater::RestoreFigures) -> UnderwaterReport 
     }
 }
 
+/// Head `head`'s first fringe frame as captured (aliased in the overlap),
+/// as de-aliased, and, from the simulator, the frame of its own projector
+/// alone and the separated pixels' error against it; each stretched to its
+/// own range.
+fn write_dealias_picture(
+    dir: &Path,
+    head: &str,
+    sample: &dealias_picture::DealiasSample,
+) -> Result<PagePicture, OutputError> {
+    let file = dealias_picture::picture_file(&head.to_lowercase());
+    let error = sample.error();
+    let mut panels: Vec<&crate::raster::Raster<f32>> = sample
+        .aliased
+        .iter()
+        .take(1)
+        .chain(sample.separated.iter().take(1))
+        .collect();
+    panels.extend(sample.reference.iter().flat_map(|r| r.first()));
+    panels.extend(error.as_ref());
+    let picture = crate::pictures::side_by_side(&panels);
+    let path = dir.join(&file);
+    save_gray_png(&path, &picture, false)?;
+    let png = std::fs::read(&path).map_err(|source| OutputError::Write {
+        path: path.clone(),
+        source,
+    })?;
+    let caption = match sample.error_rms_8bit() {
+        Some(rms) => format!(
+            "head {head}: first fringe frame as captured (aliased where both projectors light it), \
+             as de-aliased (masked pixels black), its own projector alone (the simulator's \
+             noise-free frame) and the de-aliased fringe's error against it on the separated \
+             overlap pixels (each less its pixel's mean over the period's steps), RMS {rms:.2} on \
+             the 8-bit scale; each stretched to its own range"
+        ),
+        None => format!(
+            "head {head}: first fringe frame as captured (aliased where both projectors light it) \
+             and as de-aliased (masked pixels black), each stretched to its own range"
+        ),
+    };
+    Ok(PagePicture { file, caption, png })
+}
+
 /// Per head, its first fringe frame as captured beside the same frame as
 /// decoded (restored), each stretched to its own range.
 fn write_underwater_pictures(
@@ -325,7 +376,7 @@ fn write_underwater_pictures(
         let file = super::underwater::picture_file(&head.to_lowercase());
         let mut panels = vec![captured, decoded];
         panels.extend(w.references.get(h));
-        let picture = super::underwater::side_by_side(&panels);
+        let picture = crate::pictures::side_by_side(&panels);
         let path = dir.join(&file);
         save_gray_png(&path, &picture, false)?;
         let png = std::fs::read(&path).map_err(|source| OutputError::Write {
@@ -494,6 +545,11 @@ fn write_files(
     }
     if let Some(water) = &scan.underwater {
         page.extend(write_underwater_pictures(dir, water)?);
+    }
+    for h in &scan.heads {
+        if let Some(sample) = &h.dealias_sample {
+            page.push(write_dealias_picture(dir, h.name, sample)?);
+        }
     }
     let report = report(scan);
     write_report(&dir.join("report.json"), &report)?;

@@ -20,6 +20,7 @@ pub mod calibration;
 pub mod calibration_source;
 pub mod dlpc;
 pub mod high_speed;
+pub mod reference;
 pub mod rig;
 pub mod scan;
 pub mod truth;

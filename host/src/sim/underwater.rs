@@ -3,15 +3,10 @@
 //! scan takes from it (the restorer's PSF at a nominal working distance,
 //! the exposure that makes up the round trip's attenuation).
 
-use std::sync::Arc;
-
-use hil_sim::twin::{
-    Exposure, Medium, Pattern, ProjectorTimeline, Renderer, Rig, Scene, Turbidity as TwinTurbidity,
-    TwinError, Water,
-};
+use hil_sim::twin::{Medium, Rig, Scene, Turbidity as TwinTurbidity, TwinError, Water};
 
 use crate::raster::Raster;
-use crate::scan::plan::{display_s, MAX_EXPOSURE_SCALE};
+use crate::scan::plan::MAX_EXPOSURE_SCALE;
 use crate::scan::underwater::Turbidity;
 
 /// Every device's port sits this far in front of it (as in `hil-sim dataset
@@ -80,38 +75,8 @@ pub fn clear_water_frame(
     };
     let mut clear_rig = rig.clone();
     clear_rig.medium = Medium::Water(clear(water));
-    let grey: Vec<u8> = pattern
-        .data
-        .iter()
-        .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
-    let pattern = Pattern::from_u8(pattern.width as u32, pattern.height as u32, &grey)?;
-    let exposure = Exposure {
-        start_s: 0.0,
-        end_s: display_s(),
-    };
-    let shown: Vec<ProjectorTimeline> = (0..rig.projectors.len())
-        .map(|p| {
-            let on = if p == head {
-                Arc::new(pattern.clone())
-            } else {
-                Arc::new(Pattern::flat(pattern.width, pattern.height, 0.0))
-            };
-            ProjectorTimeline::single(on, 0.0, exposure.end_s)
-        })
-        .collect();
-    let frame = Renderer::new(scene, &clear_rig, head, 0.0)?.frame(
-        &shown,
-        exposure,
-        &super::scan::sim_sensor(),
-        0,
-    )?;
-    let image = frame.clean;
-    Ok(Raster::from_vec(
-        image.width as usize,
-        image.height as usize,
-        image.data,
-    ))
+    let mut frames = super::reference::own_projector_frames(scene, &clear_rig, head, &[pattern])?;
+    Ok(frames.pop())
 }
 
 #[cfg(test)]
