@@ -389,7 +389,7 @@ fn demultiplexed_frames(
 /// all of them are masked (frames zeroed there, so the reconstruction masks
 /// them), with a loud warning. Returns each head's measured aliased overlap
 /// (lit by both; empty without flat fields), its de-aliasing figures and,
-/// where a de-aliaser ran, its first frame before and after.
+/// where a de-aliaser ran, its first period's frames before and after.
 pub fn resolve_measured_overlap(
     captured: &mut Captured,
     config: &ScanConfig,
@@ -513,7 +513,7 @@ pub struct ResolvedOverlap {
     pub overlaps: Vec<Vec<bool>>,
     /// De-aliasing figures.
     pub stats: Vec<DealiasStats>,
-    /// The first frame before and after, where a de-aliaser ran.
+    /// The first period's frames before and after, where a de-aliaser ran.
     pub samples: Vec<Option<DealiasSample>>,
 }
 

@@ -384,8 +384,9 @@ pub struct HeadResult {
     pub predicted_rms_m: f64,
     /// Simultaneous mode: what de-aliasing (or masking) the overlap did.
     pub dealias: Option<crate::dealias::DealiasStats>,
-    /// Simultaneous mode with a de-aliaser: its first frame before and
-    /// after (and the simulator's clean reference), for the picture.
+    /// Simultaneous mode with a de-aliaser: its first period's frames
+    /// before and after (and the simulator's clean reference), for the
+    /// picture and the error figure.
     pub dealias_sample: Option<dealias_picture::DealiasSample>,
     /// What the exposure left (saturated, below the modulation floor) and,
     /// adaptive, what it chose.
