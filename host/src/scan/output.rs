@@ -342,13 +342,7 @@ fn write_dealias_picture(
         .collect();
     panels.extend(sample.reference.iter().flat_map(|r| r.first()));
     panels.extend(error.as_ref());
-    let picture = crate::pictures::side_by_side(&panels);
-    let path = dir.join(&file);
-    save_gray_png(&path, &picture, false)?;
-    let png = std::fs::read(&path).map_err(|source| OutputError::Write {
-        path: path.clone(),
-        source,
-    })?;
+    let png = save_side_by_side(dir, &file, &panels)?;
     let caption = match sample.error_rms_8bit() {
         Some(rms) => format!(
             "head {head}: first fringe frame as captured (aliased where both projectors light it), \
@@ -365,6 +359,18 @@ fn write_dealias_picture(
     Ok(PagePicture { file, caption, png })
 }
 
+/// Writes `panels` side by side ([`crate::pictures::side_by_side`]) as
+/// `dir/file` and returns the PNG's bytes for the page.
+fn save_side_by_side(
+    dir: &Path,
+    file: &str,
+    panels: &[&crate::raster::Raster<f32>],
+) -> Result<Vec<u8>, OutputError> {
+    let path = dir.join(file);
+    save_gray_png(&path, &crate::pictures::side_by_side(panels), false)?;
+    std::fs::read(&path).map_err(|source| OutputError::Write { path, source })
+}
+
 /// Per head, its first fringe frame as captured beside the same frame as
 /// decoded (restored), each stretched to its own range.
 fn write_underwater_pictures(
@@ -376,13 +382,7 @@ fn write_underwater_pictures(
         let file = super::underwater::picture_file(&head.to_lowercase());
         let mut panels = vec![captured, decoded];
         panels.extend(w.references.get(h));
-        let picture = crate::pictures::side_by_side(&panels);
-        let path = dir.join(&file);
-        save_gray_png(&path, &picture, false)?;
-        let png = std::fs::read(&path).map_err(|source| OutputError::Write {
-            path: path.clone(),
-            source,
-        })?;
+        let png = save_side_by_side(dir, &file, &panels)?;
         page.push(PagePicture {
             file,
             caption: format!(
