@@ -12,7 +12,6 @@
 
 use std::path::Path;
 
-use crate::infer::ddim::sample_tile;
 use crate::infer::tiles::{infer_tiled, Planes};
 use crate::infer::{Model, ModelError};
 use crate::raster::Raster;
@@ -108,7 +107,7 @@ impl LearnedDealiaser {
                 want_frames: frames,
             });
         }
-        if m.kind == "diffusion" && sampler_steps == 0 {
+        if model.is_diffusion() && sampler_steps == 0 {
             return Err(LearnedError::NoSteps);
         }
         Ok(LearnedDealiaser {
@@ -129,15 +128,7 @@ impl LearnedDealiaser {
 
     /// Network evaluations per tile: the sampler's steps, or 1.
     pub fn evaluations_per_tile(&self) -> usize {
-        if self.is_diffusion() {
-            self.sampler_steps
-        } else {
-            1
-        }
-    }
-
-    fn is_diffusion(&self) -> bool {
-        self.model.meta.kind == "diffusion"
+        self.model.evaluations_per_tile(self.sampler_steps)
     }
 
     /// The own projector's clean frames (`K N x H x W`, NaN where not run)
@@ -156,18 +147,7 @@ impl LearnedDealiaser {
             meta.tile,
             TILE_OVERLAP_PX,
             meta.frame_channels,
-            |k, tile| {
-                if self.is_diffusion() {
-                    sample_tile(
-                        &self.model,
-                        tile,
-                        self.sampler_steps,
-                        seed ^ (k as u64).wrapping_mul(0x9E37_79B9),
-                    )
-                } else {
-                    self.model.run(&[tile])
-                }
-            },
+            |k, tile| self.model.predict_tile(tile, k, self.sampler_steps, seed),
         )?;
         let run = LearnedRun {
             tiles: tiled.tiles,

@@ -150,6 +150,45 @@ impl Model {
                 .zip(periods_px)
                 .all(|(a, b)| (a - b).abs() <= 1e-6 * b.abs())
     }
+
+    /// Whether this is a conditional diffusion model (sampled in steps)
+    /// rather than a one-step network.
+    pub fn is_diffusion(&self) -> bool {
+        self.meta.kind == "diffusion"
+    }
+
+    /// Network evaluations per tile: `sampler_steps` for a diffusion
+    /// model, 1 for a one-step network.
+    pub fn evaluations_per_tile(&self, sampler_steps: usize) -> usize {
+        if self.is_diffusion() {
+            sampler_steps
+        } else {
+            1
+        }
+    }
+
+    /// Tile `k`'s output from its condition `cond`: one run of a one-step
+    /// network, or a diffusion model's DDIM sample in `sampler_steps` steps
+    /// ([`ddim::sample_tile`]) seeded by `seed` and `k`, so every tile draws
+    /// its own noise and a run is reproducible.
+    pub fn predict_tile(
+        &self,
+        cond: &[f32],
+        k: usize,
+        sampler_steps: usize,
+        seed: u64,
+    ) -> Result<Vec<f32>, ModelError> {
+        if self.is_diffusion() {
+            ddim::sample_tile(
+                self,
+                cond,
+                sampler_steps,
+                seed ^ (k as u64).wrapping_mul(0x9E37_79B9),
+            )
+        } else {
+            self.run(&[cond])
+        }
+    }
 }
 
 /// The metadata file beside `onnx` (`x.onnx` -> `x.json`).

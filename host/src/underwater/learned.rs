@@ -12,7 +12,6 @@
 
 use std::path::Path;
 
-use crate::infer::ddim::sample_tile;
 use crate::infer::tiles::{infer_tiled, Planes};
 use crate::infer::{Model, ModelError};
 use crate::raster::Raster;
@@ -106,7 +105,7 @@ impl LearnedRestorer {
                 frames: m.frame_channels,
             });
         }
-        if m.kind == "diffusion" && sampler_steps == 0 {
+        if model.is_diffusion() && sampler_steps == 0 {
             return Err(LearnedRestoreError::NoSteps);
         }
         Ok(Self {
@@ -122,11 +121,7 @@ impl LearnedRestorer {
 
     /// Network evaluations per tile: the sampler's steps, or 1.
     pub fn evaluations_per_tile(&self) -> usize {
-        if self.model.meta.kind == "diffusion" {
-            self.sampler_steps
-        } else {
-            1
-        }
+        self.model.evaluations_per_tile(self.sampler_steps)
     }
 
     /// Restores one 4-step set (all frames one size); `seed` makes a
@@ -153,18 +148,7 @@ impl LearnedRestorer {
             meta.tile,
             TILE_OVERLAP_PX,
             SET_FRAMES,
-            |k, tile| {
-                if meta.kind == "diffusion" {
-                    sample_tile(
-                        &self.model,
-                        tile,
-                        self.sampler_steps,
-                        seed ^ (k as u64).wrapping_mul(0x9E37_79B9),
-                    )
-                } else {
-                    self.model.run(&[tile])
-                }
-            },
+            |k, tile| self.model.predict_tile(tile, k, self.sampler_steps, seed),
         )?;
         let plane = w * h;
         let restored = (0..frames.len().min(SET_FRAMES))
