@@ -10,14 +10,12 @@ pair (.golden.json) that slscan's parity test holds tract to.
 """
 
 import argparse
-import json
-import os
-import platform
 import time
 
 import numpy as np
 import torch
 
+from .. import common
 from . import data, model, sampling
 
 # Plain dictionaries, one per profile (nanoGPT's config/ habit).
@@ -35,13 +33,7 @@ def loss_fn(pred, x0, weight):
 
 
 def train(args):
-    cfg = dict(CONFIGS[args.profile])
-    if args.steps:
-        cfg["steps"] = args.steps
-    if args.minutes:
-        cfg["minutes"] = args.minutes
-    if args.threads:
-        cfg["threads"] = args.threads
+    cfg = common.profile_config(CONFIGS, args)
     torch.manual_seed(args.seed)
     torch.set_num_threads(cfg["threads"])
     device = "cuda" if args.profile == "gpu" and torch.cuda.is_available() else "cpu"
@@ -66,10 +58,7 @@ def train(args):
         opt.zero_grad()
         loss.backward()
         torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-        # Cosine decay over whichever budget (steps or minutes) runs out first.
-        done = max(step / cfg["steps"], (time.time() - start) / (cfg["minutes"] * 60))
-        for group in opt.param_groups:
-            group["lr"] = cfg["lr"] * min(1.0, step / 100) * 0.5 * (1 + np.cos(np.pi * min(done, 1.0)))
+        common.set_lr(opt, cfg, step, start)
         opt.step()
         losses.append(loss.item())
         if step % 100 == 0:
@@ -83,25 +72,10 @@ def train(args):
 
 
 def export(net, args, cfg, manifest, steps_done, elapsed, losses):
-    os.makedirs(args.out, exist_ok=True)
     name = f"dealias_{args.kind}"
-    path = os.path.join(args.out, f"{name}.onnx")
-    g = torch.Generator().manual_seed(7)
-    cond = torch.rand(1, model.COND_CHANNELS, TILE, TILE, generator=g)
-    if net.diffusion:
-        x_t = torch.randn(1, model.FRAME_CHANNELS, TILE, TILE, generator=g)
-        t = torch.tensor([0.5])
-        inputs, names = (cond, x_t, t), ["cond", "x_t", "t"]
-    else:
-        inputs, names = (cond,), ["cond"]
-    torch.onnx.export(net, inputs, path, input_names=names, output_names=["x0"], opset_version=17, dynamo=False)
-    with torch.no_grad():
-        out = net(*inputs)
-    # Golden pair: raw little-endian f32, inputs in order then the output.
-    tensors = list(zip(names, inputs)) + [("x0", out)]
-    with open(os.path.join(args.out, f"{name}.golden.bin"), "wb") as f:
-        for _, x in tensors:
-            f.write(x.detach().numpy().astype("<f4").tobytes())
+    path, names, tensors = common.export_onnx(
+        net, args.out, name, TILE, model.COND_CHANNELS, model.FRAME_CHANNELS, (0.0, 1.0)
+    )
     meta = {
         "network": name,
         "kind": args.kind,
@@ -124,27 +98,18 @@ def export(net, args, cfg, manifest, steps_done, elapsed, losses):
         "parameters": model.parameter_count(net),
         "train_steps": steps_done,
         "train_seconds": round(elapsed, 1),
-        "hardware": f"{platform.processor() or platform.machine()}, torch {torch.__version__}, {torch.get_num_threads()} threads"
-        + (f", {torch.cuda.get_device_name()}" if torch.cuda.is_available() and args.profile == "gpu" else ""),
+        "hardware": common.hardware(args.profile),
         "final_loss": float(np.mean(losses[-100:])),
         "seed": args.seed,
-        "golden": {"file": f"{name}.golden.bin", "tensors": [{"name": n, "shape": list(x.shape)} for n, x in tensors]},
+        "golden": common.golden_meta(name, tensors),
     }
-    with open(os.path.join(args.out, f"{name}.json"), "w") as f:
-        json.dump(meta, f, indent=1)
-    print(f"wrote {path} ({os.path.getsize(path)} bytes, {meta['parameters']} parameters)")
+    common.write_meta(args.out, name, meta, path)
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--data", required=True, help="hil-sim dataset aliased folder")
-    ap.add_argument("--kind", choices=["onestep", "diffusion"], required=True)
+    common.add_args(ap, "hil-sim dataset aliased folder")
     ap.add_argument("--profile", choices=list(CONFIGS), default="cpu")
-    ap.add_argument("--out", default="models")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--steps", type=int, help="override the profile's step count")
-    ap.add_argument("--minutes", type=float, help="override the profile's time limit")
-    ap.add_argument("--threads", type=int, help="override the profile's CPU threads")
     train(ap.parse_args())
 
 

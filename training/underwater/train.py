@@ -14,14 +14,12 @@ metadata (.json) and a golden input/output pair (.golden.bin).
 """
 
 import argparse
-import json
-import os
-import platform
 import time
 
 import numpy as np
 import torch
 
+from .. import common
 from ..dealias import model, sampling
 from . import data, losses
 
@@ -37,10 +35,7 @@ FRAME_CHANNELS = 4
 
 
 def train(args):
-    cfg = dict(CONFIGS[args.profile])
-    for k in ("steps", "minutes", "threads"):
-        if getattr(args, k):
-            cfg[k] = getattr(args, k)
+    cfg = common.profile_config(CONFIGS, args)
     torch.manual_seed(args.seed)
     torch.set_num_threads(cfg["threads"])
     device = "cuda" if args.profile == "gpu" and torch.cuda.is_available() else "cpu"
@@ -65,9 +60,7 @@ def train(args):
         opt.zero_grad()
         loss.backward()
         torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-        done = max(step / cfg["steps"], (time.time() - start) / (cfg["minutes"] * 60))
-        for group in opt.param_groups:
-            group["lr"] = cfg["lr"] * min(1.0, step / 100) * 0.5 * (1 + np.cos(np.pi * min(done, 1.0)))
+        common.set_lr(opt, cfg, step, start)
         opt.step()
         history.append({k: v.item() for k, v in terms.items()} | {"total": loss.item()})
         if step % 100 == 0:
@@ -81,24 +74,10 @@ def train(args):
 
 
 def export(net, args, cfg, manifest, steps_done, elapsed, history):
-    os.makedirs(args.out, exist_ok=True)
     name = f"underwater_{args.kind}"
-    path = os.path.join(args.out, f"{name}.onnx")
-    g = torch.Generator().manual_seed(7)
-    cond = torch.rand(1, COND_CHANNELS, TILE, TILE, generator=g) * 2 - 1
-    if net.diffusion:
-        x_t = torch.randn(1, FRAME_CHANNELS, TILE, TILE, generator=g)
-        t = torch.tensor([0.5])
-        inputs, names = (cond, x_t, t), ["cond", "x_t", "t"]
-    else:
-        inputs, names = (cond,), ["cond"]
-    torch.onnx.export(net, inputs, path, input_names=names, output_names=["x0"], opset_version=17, dynamo=False)
-    with torch.no_grad():
-        out = net(*inputs)
-    tensors = list(zip(names, inputs)) + [("x0", out)]
-    with open(os.path.join(args.out, f"{name}.golden.bin"), "wb") as f:
-        for _, x in tensors:
-            f.write(x.detach().numpy().astype("<f4").tobytes())
+    path, names, tensors = common.export_onnx(
+        net, args.out, name, TILE, COND_CHANNELS, FRAME_CHANNELS, (-1.0, 1.0)
+    )
     final = {k: float(np.mean([h[k] for h in history[-100:]])) for k in history[-1]}
     meta = {
         "network": name,
@@ -122,26 +101,17 @@ def export(net, args, cfg, manifest, steps_done, elapsed, history):
         "parameters": model.parameter_count(net),
         "train_steps": steps_done,
         "train_seconds": round(elapsed, 1),
-        "hardware": f"{platform.processor() or platform.machine()}, torch {torch.__version__}, {torch.get_num_threads()} threads"
-        + (f", {torch.cuda.get_device_name()}" if torch.cuda.is_available() and args.profile == "gpu" else ""),
+        "hardware": common.hardware(args.profile),
         "seed": args.seed,
-        "golden": {"file": f"{name}.golden.bin", "tensors": [{"name": n, "shape": list(x.shape)} for n, x in tensors]},
+        "golden": common.golden_meta(name, tensors),
     }
-    with open(os.path.join(args.out, f"{name}.json"), "w") as f:
-        json.dump(meta, f, indent=1)
-    print(f"wrote {path} ({os.path.getsize(path)} bytes, {meta['parameters']} parameters)")
+    common.write_meta(args.out, name, meta, path)
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--data", required=True, help="underwater_dataset folder")
-    ap.add_argument("--kind", choices=["onestep", "diffusion"], required=True)
+    common.add_args(ap, "underwater_dataset folder")
     ap.add_argument("--profile", choices=list(CONFIGS), default="cpu")
-    ap.add_argument("--out", default="models")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--steps", type=int, help="override the profile's step count")
-    ap.add_argument("--minutes", type=float, help="override the profile's time limit")
-    ap.add_argument("--threads", type=int, help="override the profile's CPU threads")
     train(ap.parse_args())
 
 

@@ -1,0 +1,88 @@
+"""What every network's training entry point shares: the command line, the
+profile overrides, the learning-rate schedule, and the export (ONNX file,
+golden input/output pair, metadata JSON) that slscan's `infer` module loads
+and its parity test holds tract to."""
+
+import json
+import os
+import platform
+import time
+
+import numpy as np
+import torch
+
+
+def add_args(ap, data_help):
+    """The options of every `train.py`; `data_help` names its dataset kind."""
+    ap.add_argument("--data", required=True, help=data_help)
+    ap.add_argument("--kind", choices=["onestep", "diffusion"], required=True)
+    ap.add_argument("--out", default="models")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--steps", type=int, help="override the profile's step count")
+    ap.add_argument("--minutes", type=float, help="override the profile's time limit")
+    ap.add_argument("--threads", type=int, help="override the profile's CPU threads")
+
+
+def profile_config(configs, args):
+    """The profile's configuration with the command line's overrides."""
+    cfg = dict(configs[args.profile])
+    for k in ("steps", "minutes", "threads"):
+        if getattr(args, k):
+            cfg[k] = getattr(args, k)
+    return cfg
+
+
+def set_lr(opt, cfg, step, start):
+    """Warm-up over 100 steps, then cosine decay over whichever budget
+    (steps or minutes) runs out first."""
+    done = max(step / cfg["steps"], (time.time() - start) / (cfg["minutes"] * 60))
+    for group in opt.param_groups:
+        group["lr"] = cfg["lr"] * min(1.0, step / 100) * 0.5 * (1 + np.cos(np.pi * min(done, 1.0)))
+
+
+def export_onnx(net, out, name, tile, cond_channels, frame_channels, cond_range):
+    """Writes `out/name.onnx` and its golden pair `out/name.golden.bin` (raw
+    little-endian f32: the inputs in order, then the output) for a seeded
+    random condition in `cond_range` (and, for a diffusion model, a noisy
+    frame and t = 0.5). Returns the ONNX path, the input names and the
+    (name, tensor) list written."""
+    os.makedirs(out, exist_ok=True)
+    path = os.path.join(out, f"{name}.onnx")
+    g = torch.Generator().manual_seed(7)
+    low, high = cond_range
+    cond = torch.rand(1, cond_channels, tile, tile, generator=g)
+    if (low, high) != (0.0, 1.0):
+        cond = cond * (high - low) + low
+    if net.diffusion:
+        x_t = torch.randn(1, frame_channels, tile, tile, generator=g)
+        t = torch.tensor([0.5])
+        inputs, names = (cond, x_t, t), ["cond", "x_t", "t"]
+    else:
+        inputs, names = (cond,), ["cond"]
+    torch.onnx.export(net, inputs, path, input_names=names, output_names=["x0"], opset_version=17, dynamo=False)
+    with torch.no_grad():
+        out_tensor = net(*inputs)
+    tensors = list(zip(names, inputs)) + [("x0", out_tensor)]
+    with open(os.path.join(out, f"{name}.golden.bin"), "wb") as f:
+        for _, x in tensors:
+            f.write(x.detach().numpy().astype("<f4").tobytes())
+    return path, names, tensors
+
+
+def hardware(profile):
+    """The machine the training ran on, for the model card."""
+    return f"{platform.processor() or platform.machine()}, torch {torch.__version__}, {torch.get_num_threads()} threads" + (
+        f", {torch.cuda.get_device_name()}" if torch.cuda.is_available() and profile == "gpu" else ""
+    )
+
+
+def golden_meta(name, tensors):
+    """The metadata's description of the golden pair."""
+    return {"file": f"{name}.golden.bin", "tensors": [{"name": n, "shape": list(x.shape)} for n, x in tensors]}
+
+
+def write_meta(out, name, meta, path):
+    """Writes `out/name.json` and says what was written."""
+    with open(os.path.join(out, f"{name}.json"), "w") as f:
+        json.dump(meta, f, indent=1)
+    print(f"wrote {path} ({os.path.getsize(path)} bytes, {meta['parameters']} parameters)")
