@@ -21,7 +21,8 @@ use std::f64::consts::TAU;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use hil_sim::twin::random_scene::{random_scene, Placement};
+use hil_sim::twin::dataset::PLACE;
+use hil_sim::twin::random_scene::random_scene;
 use hil_sim::twin::scenes::{single_head, Detail};
 use hil_sim::twin::{
     BitDepth, Exposure, Fringe, Medium, Pattern, ProjectorTimeline, Renderer, Rig, Scene,
@@ -38,13 +39,6 @@ use slscan::sim::underwater::{clear, exposure_scale, nominal_psf_sigma_px, subme
 const CAMERA: (u32, u32) = (640, 480);
 const DMD: (u32, u32) = (1280, 800);
 const STEPS: usize = 4;
-/// `hil-sim dataset underwater`'s placement.
-const PLACE: Placement = Placement {
-    x_m: (-0.08, 0.08),
-    y_m: (-0.06, 0.06),
-    z_m: (0.44, 0.54),
-    wall_z_m: 0.6,
-};
 const LEVELS: [Turbidity; 4] = [Turbidity::T1, Turbidity::T2, Turbidity::T3, Turbidity::T4];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -37,7 +37,8 @@
 use std::f64::consts::TAU;
 use std::sync::Arc;
 
-use hil_sim::twin::random_scene::{random_scene, Placement};
+use hil_sim::twin::dataset::PLACE;
+use hil_sim::twin::random_scene::random_scene;
 use hil_sim::twin::scenes::{single_head, Detail};
 use hil_sim::twin::{
     BitDepth, Exposure, Fringe, Medium, Pattern, ProjectorTimeline, Renderer, Rig, Scene,
@@ -58,13 +59,6 @@ const SAMPLES: usize = 3;
 const PERIODS_PX: [f64; 3] = [59.0, 64.0, 70.0];
 const PORT_M: f64 = 0.03;
 const WORKING_DISTANCE_M: f64 = 0.5;
-/// The dataset's placement (hil-sim `dataset.rs`, `PLACE`).
-const PLACE: Placement = Placement {
-    x_m: (-0.08, 0.08),
-    y_m: (-0.06, 0.06),
-    z_m: (0.44, 0.54),
-    wall_z_m: 0.6,
-};
 const LEVELS: [Turbidity; 4] = [Turbidity::T1, Turbidity::T2, Turbidity::T3, Turbidity::T4];
 
 type Frames = Vec<Raster<f32>>;
