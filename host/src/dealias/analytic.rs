@@ -88,6 +88,9 @@ pub struct Separated {
     pub sigma_own_px: f64,
     /// `sigma_own_px` over that of the own projector alone.
     pub sigma_ratio: f64,
+    /// Range along the camera pixel's ray, metres, where the solver knows
+    /// it ([`super::epipolar`]; the free-column solver does not).
+    pub range_m: Option<f64>,
 }
 
 /// Why a pixel was not separated.
@@ -220,6 +223,7 @@ impl AnalyticDealiaser {
             b: theta[3],
             sigma_own_px: var_own.sqrt(),
             sigma_ratio,
+            range_m: None,
         })
     }
 
@@ -354,8 +358,30 @@ impl AnalyticDealiaser {
     }
 }
 
+impl super::Separator for AnalyticDealiaser {
+    fn periods_px(&self) -> &[f64] {
+        &self.periods_px
+    }
+
+    fn steps(&self) -> usize {
+        self.steps
+    }
+
+    /// The pixel's place does not matter: the columns are free unknowns.
+    fn separate_pixel(
+        &self,
+        _index: usize,
+        samples: &[f32],
+        a0: f64,
+        b0: f64,
+        sigma: f64,
+    ) -> Result<Separated, Refused> {
+        self.separate(samples, a0, b0, sigma)
+    }
+}
+
 /// The N-step DFT bin `(2/N) sum I_n e^{-i 2 pi n / N}` as (re, im).
-fn dft_bin(samples: &[f32]) -> (f64, f64) {
+pub(super) fn dft_bin(samples: &[f32]) -> (f64, f64) {
     let n = samples.len() as f64;
     let (mut re, mut im) = (0.0, 0.0);
     for (k, &s) in samples.iter().enumerate() {

@@ -7,7 +7,9 @@
 //! ```text
 //! frames (K periods x N steps) + flat fields (dark, A on, B on)
 //!   -> lit by the own projector only: unchanged
-//!   -> lit by the other projector (and perhaps the own): analytic::separate per pixel
+//!   -> lit by the other projector (and perhaps the own): a Separator per pixel
+//!        (epipolar: one range along the ray; analytic: two free columns),
+//!        every 4th pixel first, the rest starting from those around them
 //!        separated -> own fringe re-expressed as N frames;  refused -> masked
 //! ```
 //!
@@ -15,12 +17,14 @@
 //! behaviour before a de-aliaser existed).
 
 pub mod analytic;
+pub mod epipolar;
 pub mod learned;
 pub mod metrics;
 
 use rayon::prelude::*;
 
 pub use analytic::{AnalyticDealiaser, AnalyticParams, Refused, Separated};
+pub use epipolar::{EpipolarDealiaser, EpipolarError, EpipolarParams};
 
 use crate::raster::Raster;
 use crate::scan::aliasing::{CameraLighting, FlatFields};
@@ -28,8 +32,12 @@ use crate::scan::aliasing::{CameraLighting, FlatFields};
 /// How the simultaneous mode treats pixels the other projector lights.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum DealiasMethod {
-    /// Separate the two fringes per pixel ([`analytic`]).
+    /// Separate the two fringes per pixel along its ray, through the
+    /// calibrated rig ([`epipolar`]).
     #[default]
+    Epipolar,
+    /// Separate the two fringes per pixel with free columns, no
+    /// calibration ([`analytic`]).
     Analytic,
     /// Mask every pixel the other projector lights.
     Mask,
@@ -42,6 +50,7 @@ impl DealiasMethod {
     /// The name the CLI and the report use.
     pub fn name(self) -> &'static str {
         match self {
+            DealiasMethod::Epipolar => "epipolar",
             DealiasMethod::Analytic => "analytic",
             DealiasMethod::Mask => "mask",
             DealiasMethod::Learned => "learned",
@@ -75,6 +84,57 @@ pub struct DealiasStats {
     pub network: Option<learned::LearnedRun>,
     /// Wall time, milliseconds.
     pub time_ms: u64,
+}
+
+/// A per-pixel separation of the two fringes.
+pub trait Separator: Sync {
+    /// Periods, finest first.
+    fn periods_px(&self) -> &[f64];
+    /// Steps per period.
+    fn steps(&self) -> usize;
+    /// Separates camera pixel `index`: `samples[p * steps + n]`
+    /// (period-major, as the frames are), `a0`, `b0` the own and other
+    /// modulations the flat fields give, `sigma` the noise of one sample.
+    fn separate_pixel(
+        &self,
+        index: usize,
+        samples: &[f32],
+        a0: f64,
+        b0: f64,
+        sigma: f64,
+    ) -> Result<Separated, Refused>;
+    /// As [`Separator::separate_pixel`], given the separated neighbours
+    /// `hints` (a solver that can start from them saves its search; by
+    /// default they are not used).
+    fn separate_near(
+        &self,
+        index: usize,
+        samples: &[f32],
+        a0: f64,
+        b0: f64,
+        sigma: f64,
+        hints: &[Separated],
+    ) -> Result<Separated, Refused> {
+        let _ = hints;
+        self.separate_pixel(index, samples, a0, b0, sigma)
+    }
+}
+
+/// Spacing of the pixels separated first, whose solutions the pixels
+/// between them start from ([`Separator::separate_near`]).
+const SEED_GRID: usize = 4;
+
+/// The seed-grid corners of the cell holding pixel `i`.
+fn cell_corners(i: usize, width: usize, height: usize) -> [Option<usize>; 4] {
+    let (x, y) = (i % width, i / width);
+    let (x0, y0) = (x - x % SEED_GRID, y - y % SEED_GRID);
+    let at = |cx: usize, cy: usize| (cx < width && cy < height).then(|| cy * width + cx);
+    [
+        at(x0, y0),
+        at(x0 + SEED_GRID, y0),
+        at(x0, y0 + SEED_GRID),
+        at(x0 + SEED_GRID, y0 + SEED_GRID),
+    ]
 }
 
 /// Pairs of opposite neighbours that must agree (of four): two, since a
@@ -154,7 +214,7 @@ pub fn dealias_frames(
     flat: &FlatFields,
     own: usize,
     lighting: &CameraLighting,
-    solver: &AnalyticDealiaser,
+    solver: &impl Separator,
     noise_sigma: f32,
     shot_share: f32,
 ) -> DealiasStats {
@@ -163,27 +223,49 @@ pub fn dealias_frames(
     let (own_flat, other_flat) = flat.own_other(own);
     let count = frames.len();
     let pixels = flat.dark.data.len();
-    let results: Vec<(usize, Result<Separated, Refused>, Vec<f32>)> = (0..pixels)
+    let (width, height) = (flat.dark.width, flat.dark.height);
+    let solve = |i: usize, hints: &[Separated]| {
+        let samples: Vec<f32> = frames.iter().map(|f| f.data[i]).collect();
+        let mean = samples.iter().sum::<f32>() / count as f32;
+        let dark = flat.dark.data[i];
+        // Full-contrast fringes: half of each projector's full-on signal.
+        let a0 = 0.5 * f64::from(own_flat.data[i] - dark);
+        let b0 = 0.5 * f64::from(other_flat.data[i] - dark);
+        let sigma = sample_sigma(noise_sigma, shot_share, mean);
+        let solved = solver.separate_near(i, &samples, a0, b0, sigma, hints);
+        (i, solved, own_fringe(solver, &solved, mean))
+    };
+    let tried = |i: &usize| affected[*i] && own_lit[*i];
+    let on_grid =
+        |i: &usize| (i % width).is_multiple_of(SEED_GRID) && (i / width).is_multiple_of(SEED_GRID);
+    // The seed grid first, each pixel on its own; then every other pixel
+    // from the seeds at its cell's corners.
+    let mut results: Vec<(usize, Result<Separated, Refused>, Vec<f32>)> = (0..pixels)
         .into_par_iter()
-        .filter(|&i| affected[i] && own_lit[i])
-        .map(|i| {
-            let samples: Vec<f32> = frames.iter().map(|f| f.data[i]).collect();
-            let mean = samples.iter().sum::<f32>() / count as f32;
-            let dark = flat.dark.data[i];
-            // Full-contrast fringes: half of each projector's full-on signal.
-            let a0 = 0.5 * f64::from(own_flat.data[i] - dark);
-            let b0 = 0.5 * f64::from(other_flat.data[i] - dark);
-            let sigma = sample_sigma(noise_sigma, shot_share, mean);
-            let solved = solver.separate(&samples, a0, b0, sigma);
-            (i, solved, own_fringe(solver, &solved, mean))
-        })
+        .filter(|i| tried(i) && on_grid(i))
+        .map(|i| solve(i, &[]))
         .collect();
+    let mut seeds: Vec<Option<Separated>> = vec![None; pixels];
+    for (i, solved, _) in &results {
+        seeds[*i] = solved.ok();
+    }
+    results.par_extend(
+        (0..pixels)
+            .into_par_iter()
+            .filter(|i| tried(i) && !on_grid(i))
+            .map(|i| {
+                let hints: Vec<Separated> = cell_corners(i, width, height)
+                    .iter()
+                    .filter_map(|c| c.and_then(|c| seeds[c]))
+                    .collect();
+                solve(i, &hints)
+            }),
+    );
     let mut stats = DealiasStats {
         affected: affected.iter().filter(|&&m| m).count(),
         attempted: results.len(),
         ..DealiasStats::default()
     };
-    let (width, height) = (flat.dark.width, flat.dark.height);
     let mut own_px = vec![f64::NAN; pixels];
     for (i, solved, _) in &results {
         if let Ok(s) = solved {
@@ -307,11 +389,7 @@ pub fn dealias_frames_learned(
 /// The own projector's N-step fringe of a separated pixel, period-major,
 /// around the pixel's observed mean (so the reconstruction's shot-noise
 /// prediction counts both projectors' light); empty when refused.
-fn own_fringe(
-    solver: &AnalyticDealiaser,
-    solved: &Result<Separated, Refused>,
-    mean: f32,
-) -> Vec<f32> {
+fn own_fringe(solver: &impl Separator, solved: &Result<Separated, Refused>, mean: f32) -> Vec<f32> {
     let Ok(s) = solved else {
         return Vec::new();
     };

@@ -28,7 +28,7 @@ use super::{plan, Mode, Progress, ScanConfig, ScanError, HEAD_NAMES};
 use crate::calibration::RigCalibration;
 use crate::dealias::{
     dealias_frames, dealias_frames_learned, mask_pixels, AnalyticDealiaser, AnalyticParams,
-    DealiasMethod, DealiasStats,
+    DealiasMethod, DealiasStats, EpipolarDealiaser, EpipolarParams,
 };
 use crate::demultiplex::{
     demultiplex_head, smallest_safe_head_bins, DemuxError, HeadBins, GAMMA_HARMONICS,
@@ -383,9 +383,11 @@ fn demultiplexed_frames(
 /// Simultaneous mode with identical sequences: pixels lit by both
 /// projectors see aliased fringes, and pixels lit by the other head's
 /// projector alone see fringes of the wrong projector, as the flat fields
-/// show them ([`super::aliasing::unusable_mask`]). With [`DealiasMethod::Analytic`] each
-/// camera's own fringe is separated where both light the pixel
-/// ([`crate::dealias`]) and the rest masked; with [`DealiasMethod::Mask`]
+/// show them ([`super::aliasing::unusable_mask`]). With
+/// [`DealiasMethod::Epipolar`] (through `calibration`),
+/// [`DealiasMethod::Analytic`] or [`DealiasMethod::Learned`] each camera's
+/// own fringe is separated where both light the pixel ([`crate::dealias`])
+/// and the rest masked; with [`DealiasMethod::Mask`]
 /// all of them are masked (frames zeroed there, so the reconstruction masks
 /// them), with a loud warning. Returns each head's measured aliased overlap
 /// (lit by both; empty without flat fields), its de-aliasing figures and,
@@ -393,6 +395,7 @@ fn demultiplexed_frames(
 pub fn resolve_measured_overlap(
     captured: &mut Captured,
     config: &ScanConfig,
+    calibration: &RigCalibration,
     warnings: &mut Vec<String>,
 ) -> Result<ResolvedOverlap, ScanError> {
     let Some(flat) = &captured.flat else {
@@ -409,7 +412,7 @@ pub fn resolve_measured_overlap(
             )
             .map_err(ScanError::Dealias)?,
         ),
-        DealiasMethod::Mask | DealiasMethod::Learned => None,
+        DealiasMethod::Epipolar | DealiasMethod::Mask | DealiasMethod::Learned => None,
     };
     let mut overlaps = Vec::new();
     let mut all_stats = Vec::new();
@@ -424,6 +427,22 @@ pub fn resolve_measured_overlap(
         let both_count = both.iter().filter(|&&b| b).count();
         let mask_count = mask.iter().filter(|&&m| m).count();
         let mut stats = match (config.dealias, &solver, &config.learned) {
+            (DealiasMethod::Epipolar, _, _) => dealias_frames(
+                frames,
+                flat,
+                h,
+                &lit,
+                &EpipolarDealiaser::new(
+                    calibration,
+                    h,
+                    &config.periods_px,
+                    steps,
+                    EpipolarParams::default(),
+                )
+                .map_err(ScanError::Epipolar)?,
+                config.noise_sigma * captured.noise_factor,
+                config.shot_noise_share,
+            ),
             (DealiasMethod::Analytic, Some(solver), _) => dealias_frames(
                 frames,
                 flat,

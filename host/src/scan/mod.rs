@@ -284,8 +284,8 @@ pub enum ScanError {
     /// Board, projector or camera failed (board silent, missing frame, ...).
     #[error("rig")]
     Rig(#[from] RigError),
-    /// Analytic de-aliasing needs more periods than the scan has.
-    #[error("analytic de-aliasing needs at least {} fringe periods (2 reals each for 4 unknowns, with margin), the scan has {periods}; give more --periods or --dealias mask", crate::dealias::analytic::MIN_PERIODS)]
+    /// Epipolar or analytic de-aliasing needs more periods than the scan has.
+    #[error("de-aliasing needs at least {} fringe periods (2 reals each; with three, many pixels have several solutions), the scan has {periods}; give more --periods or --dealias mask", crate::dealias::analytic::MIN_PERIODS)]
     DealiasPeriods {
         /// Periods of the scan.
         periods: usize,
@@ -293,6 +293,9 @@ pub enum ScanError {
     /// The de-aliaser could not be set up for the period set.
     #[error("de-aliaser")]
     Dealias(#[source] crate::unwrap::UnwrapError),
+    /// The epipolar de-aliaser cannot work with this rig or period set.
+    #[error("epipolar de-aliasing (give --dealias analytic or mask to scan without it)")]
+    Epipolar(#[source] crate::dealias::EpipolarError),
     /// A head's reconstruction failed.
     #[error("reconstruct head {head}")]
     Reconstruct {
@@ -552,10 +555,25 @@ pub fn check_before_capture(
     }
     let periods = config.periods_px.len();
     if config.mode == Mode::Simultaneous
-        && config.dealias == crate::dealias::DealiasMethod::Analytic
+        && matches!(
+            config.dealias,
+            crate::dealias::DealiasMethod::Analytic | crate::dealias::DealiasMethod::Epipolar
+        )
         && periods < crate::dealias::analytic::MIN_PERIODS
     {
         return Err(ScanError::DealiasPeriods { periods });
+    }
+    if config.mode == Mode::Simultaneous
+        && config.dealias == crate::dealias::DealiasMethod::Epipolar
+    {
+        crate::dealias::EpipolarDealiaser::new(
+            calibration,
+            0,
+            &config.periods_px,
+            config.steps,
+            crate::dealias::EpipolarParams::default(),
+        )
+        .map_err(ScanError::Epipolar)?;
     }
     if config.mode == Mode::Simultaneous
         && config.dealias == crate::dealias::DealiasMethod::Learned
@@ -644,7 +662,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         overlaps: aliased_masks,
         stats: dealias_stats,
         samples: mut dealias_samples,
-    } = capture::resolve_measured_overlap(&mut captured, config, &mut warnings)?;
+    } = capture::resolve_measured_overlap(&mut captured, config, calibration, &mut warnings)?;
     if captured.flat.is_some() {
         clock.lap("de-alias");
     }

@@ -71,7 +71,7 @@ fn rigs_and_modes_the_board_cannot_run_are_refused_by_name() {
         check_before_capture(&rig(1, false), &simultaneous),
         Err(ScanError::ModeNeedsTwoHeads { .. })
     ));
-    // Analytic de-aliasing with the three default periods: too few.
+    // De-aliasing with the three default periods: too few.
     assert!(matches!(
         check_before_capture(&rig(2, true), &simultaneous),
         Err(ScanError::DealiasPeriods { periods: 3 })

@@ -152,9 +152,10 @@ pub struct Args {
     #[arg(long)]
     precompensate_gamma: Option<f64>,
     /// Simultaneous mode: separate the two projectors' fringes per pixel
-    /// where both light it (analytic), or mask every pixel the other
-    /// projector lights (mask).
-    #[arg(long, value_enum, default_value_t = DealiasArg::Analytic)]
+    /// where both light it (epipolar: along the pixel's ray through the
+    /// calibrated rig; analytic: with free columns; learned: a network), or
+    /// mask every pixel the other projector lights (mask).
+    #[arg(long, value_enum, default_value_t = DealiasArg::Epipolar)]
     dealias: DealiasArg,
     /// --dealias learned: the ONNX network (its .json metadata beside it);
     /// default: the shipped one-step network, models/dealias_onestep.onnx.
@@ -362,7 +363,11 @@ fn exposures_for(args: &Args) -> Exposures {
 /// `--dealias` values.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 enum DealiasArg {
-    /// Per-pixel phasor separation from the four unknowns (two columns, two modulations).
+    /// Per-pixel phasor separation along the pixel's ray: the calibrated rig
+    /// ties both projector columns to one range (three unknowns).
+    Epipolar,
+    /// Per-pixel phasor separation from the four unknowns (two columns, two
+    /// modulations), without the calibration.
     Analytic,
     /// Mask every pixel the other projector lights.
     Mask,
@@ -374,6 +379,7 @@ enum DealiasArg {
 impl From<DealiasArg> for DealiasMethod {
     fn from(d: DealiasArg) -> Self {
         match d {
+            DealiasArg::Epipolar => DealiasMethod::Epipolar,
             DealiasArg::Analytic => DealiasMethod::Analytic,
             DealiasArg::Mask => DealiasMethod::Mask,
             DealiasArg::Learned => DealiasMethod::Learned,
@@ -536,9 +542,11 @@ fn periods_for(args: &Args, mode: Mode, dmd_width_px: u32) -> Vec<f64> {
     match (&args.periods, mode, DealiasMethod::from(args.dealias)) {
         (Some(p), ..) => p.clone(),
         (None, ..) if args.medium == MediumArg::Water => water_periods_px(dmd_width_px),
-        (None, Mode::Simultaneous, DealiasMethod::Analytic | DealiasMethod::Learned) => {
-            dealias_periods_px(dmd_width_px)
-        }
+        (
+            None,
+            Mode::Simultaneous,
+            DealiasMethod::Epipolar | DealiasMethod::Analytic | DealiasMethod::Learned,
+        ) => dealias_periods_px(dmd_width_px),
         (None, ..) => default_periods_px(dmd_width_px),
     }
 }
