@@ -9,7 +9,10 @@ use std::path::Path;
 use std::time::Instant;
 
 use slscan::dealias::learned::LearnedDealiaser;
-use slscan::dealias::{dealias_frames, dealias_frames_learned, AnalyticDealiaser, AnalyticParams};
+use slscan::dealias::{
+    dealias_frames, dealias_frames_learned, AnalyticDealiaser, AnalyticParams, EpipolarDealiaser,
+    EpipolarParams,
+};
 use slscan::infer::tiles::Planes;
 use slscan::scan::aliasing::{camera_lighting, AliasParams};
 use slscan::sim::aliased::{held_out, AliasedSet};
@@ -38,6 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut base = None;
     for (name, which) in [
         ("analytic", 0),
+        ("epipolar (default)", 3),
         ("one-step network", 1),
         ("diffusion, 8 DDIM steps", 2),
     ] {
@@ -54,6 +58,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         s.camera,
                         &lit,
                         &analytic,
+                        noise_sigma(&sensor),
+                        shot_noise_share(&sensor),
+                    );
+                }
+                3 => {
+                    let solver = EpipolarDealiaser::new(
+                        &s.calibration,
+                        s.camera,
+                        &periods,
+                        4,
+                        EpipolarParams::default(),
+                    )?;
+                    dealias_frames(
+                        &mut frames,
+                        &s.flat,
+                        s.camera,
+                        &lit,
+                        &solver,
                         noise_sigma(&sensor),
                         shot_noise_share(&sensor),
                     );

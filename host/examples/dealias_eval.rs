@@ -21,10 +21,13 @@ use std::time::Instant;
 
 use slscan::dealias::learned::LearnedDealiaser;
 use slscan::dealias::metrics::{error_stats, mse_8bit, psnr_db, ssim_frames};
-use slscan::dealias::{dealias_frames, dealias_frames_learned, AnalyticDealiaser, AnalyticParams};
+use slscan::dealias::{
+    dealias_frames, dealias_frames_learned, AnalyticDealiaser, AnalyticParams, EpipolarDealiaser,
+    EpipolarParams, Separator,
+};
 use slscan::phase::{wrap_pi, PhaseShift};
 use slscan::raster::Raster;
-use slscan::scan::aliasing::{camera_lighting, AliasParams};
+use slscan::scan::aliasing::{camera_lighting, AliasParams, CameraLighting};
 use slscan::sim::aliased::{held_out, AliasedSample, AliasedSet};
 use slscan::sim::scan::{noise_sigma, shot_noise_share, sim_sensor};
 
@@ -35,6 +38,8 @@ enum Method {
     Clean,
     /// The aliased frames as they are.
     Input,
+    /// Built per sample and camera from the sample's rig.
+    Epipolar,
     Analytic(AnalyticDealiaser),
     Learned(Box<LearnedDealiaser>, String),
 }
@@ -44,6 +49,7 @@ impl Method {
         match self {
             Method::Clean => "clean target (floor)".into(),
             Method::Input => "aliased input (none)".into(),
+            Method::Epipolar => "epipolar".into(),
             Method::Analytic(_) => "analytic".into(),
             Method::Learned(_, n) => n.clone(),
         }
@@ -87,6 +93,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut methods = vec![
         Method::Clean,
         Method::Input,
+        Method::Epipolar,
         Method::Analytic(AnalyticDealiaser::new(
             &periods,
             4,
@@ -202,18 +209,17 @@ fn run(
     match method {
         Method::Input => {}
         Method::Clean => frames.clone_from(&s.clean_own),
-        Method::Analytic(solver) => {
-            let sigma = noise_sigma(sensor) * s.noise_scale as f32;
-            dealias_frames(
-                &mut frames,
-                &s.flat,
+        Method::Epipolar => {
+            let solver = EpipolarDealiaser::new(
+                &s.calibration,
                 s.camera,
-                &lit,
-                solver,
-                sigma,
-                shot_noise_share(sensor),
-            );
+                &s.periods_px,
+                4,
+                EpipolarParams::default(),
+            )?;
+            separate(&mut frames, s, &lit, &solver, sensor);
         }
+        Method::Analytic(solver) => separate(&mut frames, s, &lit, solver, sensor),
         Method::Learned(net, _) => {
             let stats = dealias_frames_learned(&mut frames, &s.flat, s.camera, &lit, net, 1)?;
             evaluations = stats.network.map_or(0, |n| n.evaluations);
@@ -238,6 +244,19 @@ fn run(
         evaluations,
         seconds,
     })
+}
+
+/// Runs a per-pixel solver on one camera's frames at the sample's noise.
+fn separate(
+    frames: &mut [Raster<f32>],
+    s: &AliasedSample,
+    lit: &CameraLighting,
+    solver: &impl Separator,
+    sensor: &slscan::sim::twin::SensorModel,
+) {
+    let sigma = noise_sigma(sensor) * s.noise_scale as f32;
+    let share = shot_noise_share(sensor);
+    dealias_frames(frames, &s.flat, s.camera, lit, solver, sigma, share);
 }
 
 /// Adds `out`'s figures on the pixels of `mask` to `tally`.

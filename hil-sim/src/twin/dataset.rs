@@ -261,7 +261,7 @@ pub fn aliased_sample(
 ) -> Result<(Vec<AliasedStack>, f64, AliasedCapture), TwinError> {
     let mut rng = sample_rng(spec, index);
     let scene = random_scene(&mut rng, &PLACE, false)?;
-    let rig = dual_head(&detail(spec));
+    let rig = aliased_rig(spec);
     let (lo, hi) = spec.noise_scale;
     let noise_scale = if hi > lo {
         (lo.ln() + rng.random::<f64>() * (hi.ln() - lo.ln())).exp()
@@ -278,6 +278,12 @@ pub fn aliased_sample(
         .map(|camera| render_aliased_stack(&scene, &rig, camera, &capture, rng.random()))
         .collect::<Result<_, _>>()?;
     Ok((stacks, noise_scale, capture))
+}
+
+/// The rig every aliased sample of `spec` is rendered with (the scenes
+/// move, the rig does not).
+pub fn aliased_rig(spec: &DatasetSpec) -> Rig {
+    dual_head(&detail(spec))
 }
 
 /// Sample `index`'s random stream: ChaCha8 stream `index` of the seed.

@@ -185,7 +185,7 @@ impl Distortion {
     }
 
     /// d(xd, yd)/d(x, y) as `[dxd/dx, dxd/dy, dyd/dx, dyd/dy]`.
-    fn jacobian(&self, x: f64, y: f64) -> [f64; 4] {
+    pub fn jacobian(&self, x: f64, y: f64) -> [f64; 4] {
         let r2 = x * x + y * y;
         let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
         // d radial / d r2

@@ -415,20 +415,27 @@ fn matrix4(m: &[[f64; 4]; 4]) -> Matrix4<f64> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
 
     /// 73, 64, 56, 50 fringes over 1280 px (`scan::dealias_periods_px`).
-    const PERIODS: [f64; 4] = [1280.0 / 73.0, 20.0, 1280.0 / 56.0, 25.6];
+    pub(in crate::dealias) const PERIODS: [f64; 4] = [1280.0 / 73.0, 20.0, 1280.0 / 56.0, 25.6];
 
     fn solver() -> AnalyticDealiaser {
         AnalyticDealiaser::new(&PERIODS, 4, 1280, AnalyticParams::default()).unwrap()
     }
 
     /// The 16 samples of a pixel lit by both projectors.
-    fn samples(xa: f64, xb: f64, a: f64, b: f64, noise: f64, seed: u64) -> Vec<f32> {
+    pub(in crate::dealias) fn samples(
+        xa: f64,
+        xb: f64,
+        a: f64,
+        b: f64,
+        noise: f64,
+        seed: u64,
+    ) -> Vec<f32> {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let n = Normal::new(0.0, noise.max(1e-12)).unwrap();
         let mut out = Vec::new();

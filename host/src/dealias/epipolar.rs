@@ -184,9 +184,9 @@ impl EpipolarDealiaser {
     }
 
     /// As [`Self::separate`], starting from the ranges `hints_m` of
-    /// separated neighbours instead of walking the ray: on a smooth surface
-    /// one of them leads to the pixel's own range. Walks the ray when none
-    /// gives a solution that passes.
+    /// separated neighbours (nearest first) instead of walking the ray: on a
+    /// smooth surface the first leads to the pixel's own range, and the
+    /// first solution that passes is taken. Walks the ray when none does.
     pub fn separate_near(
         &self,
         index: usize,
@@ -196,20 +196,20 @@ impl EpipolarDealiaser {
         sigma: f64,
         hints_m: &[f64],
     ) -> Result<Separated, Refused> {
-        let near = self
-            .pixel_problem(index, samples, a0, b0, sigma)
-            .and_then(|pixel| {
-                let zz: f64 = pixel.z().iter().map(|(re, im)| re * re + im * im).sum();
-                let starts = hints_m.iter().filter_map(|&s| {
-                    let (x_own, x_other) = self.columns(&pixel.rays, s)?;
-                    let (_, a, b) = self.fit_modulations(pixel.z(), zz, x_own, x_other);
-                    Some([s, a, b])
-                });
-                let solutions = self.solutions(&pixel, starts);
-                let (_, _, theta) = solutions.first().ok_or(Refused::NoSolution)?;
-                self.finish(&pixel, theta)
-            });
-        near.or_else(|_| self.separate(index, samples, a0, b0, sigma))
+        let pixel = self.pixel_problem(index, samples, a0, b0, sigma)?;
+        let zz: f64 = pixel.z().iter().map(|(re, im)| re * re + im * im).sum();
+        for &s in hints_m {
+            let Some((x_own, x_other)) = self.columns(&pixel.rays, s) else {
+                continue;
+            };
+            let (_, a, b) = self.fit_modulations(pixel.z(), zz, x_own, x_other);
+            if let Some((_, _, theta)) = self.solutions(&pixel, [[s, a, b]]).first() {
+                if let Ok(separated) = self.finish(&pixel, theta) {
+                    return Ok(separated);
+                }
+            }
+        }
+        self.separate(index, samples, a0, b0, sigma)
     }
 
     /// The pixel's ray in both projectors, its phasors and its priors.
@@ -299,9 +299,8 @@ impl EpipolarDealiaser {
             .try_inverse()
             .map(|inv| inv[(0, 0)])
             .ok_or(Refused::IllPosed)?;
-        let (x_own, x_other) = self.columns(rays, theta[0]).ok_or(Refused::NoSolution)?;
-        let (d_own, _) = self
-            .column_rates(rays, theta[0])
+        let ((x_own, d_own), (x_other, _)) = self
+            .columns_and_rates(rays, theta[0])
             .ok_or(Refused::NoSolution)?;
         let var_own = var_s * d_own * d_own;
         let alone: f64 = self
@@ -420,7 +419,7 @@ impl EpipolarDealiaser {
             let (jtj, jtr, _) = self.normal_equations(rays, z, &theta, prior);
             let m = Matrix3::from_fn(|i, j| jtj[i][j]);
             let step = m.lu().solve(&Vector3::from(jtr))?;
-            let (d_own, d_other) = self.column_rates(rays, theta[0])?;
+            let ((_, d_own), (_, d_other)) = self.columns_and_rates(rays, theta[0])?;
             let rate = d_own.abs().max(d_other.abs()).max(1e-12);
             let ds = step[0].clamp(-quarter / rate, quarter / rate);
             theta = [theta[0] - ds, theta[1] - step[1], theta[2] - step[2]];
@@ -457,8 +456,7 @@ impl EpipolarDealiaser {
                 }
             }
         };
-        let (Some((xa, xb)), Some((da, db))) = (self.columns(rays, s), self.column_rates(rays, s))
-        else {
+        let Some(((xa, da), (xb, db))) = self.columns_and_rates(rays, s) else {
             return (jtj, jtr, f64::INFINITY);
         };
         let inv = 1.0 / prior.sigma_z2.sqrt();
@@ -514,13 +512,16 @@ impl EpipolarDealiaser {
         ))
     }
 
-    /// d column / d s of both projectors at `s` (central difference, so
-    /// distortion counts).
-    fn column_rates(&self, rays: &[RayInProjector; 2], s: f64) -> Option<(f64, f64)> {
-        let h = 1e-6 * s.abs().max(1e-3);
-        let (a1, b1) = self.columns(rays, s + h)?;
-        let (a0, b0) = self.columns(rays, s - h)?;
-        Some(((a1 - a0) / (2.0 * h), (b1 - b0) / (2.0 * h)))
+    /// `((own column, its rate), (other column, its rate))` at range `s`.
+    fn columns_and_rates(
+        &self,
+        rays: &[RayInProjector; 2],
+        s: f64,
+    ) -> Option<((f64, f64), (f64, f64))> {
+        Some((
+            column_and_rate(&self.own, &rays[0], s)?,
+            column_and_rate(&self.other, &rays[1], s)?,
+        ))
     }
 
     /// Whether the point at `s` lies on `projector`'s DMD (within a pixel).
@@ -675,9 +676,8 @@ fn pixel(projector: &ProjectorModel, ray: &RayInProjector, s: f64) -> Option<(f6
     Some((px.x, px.y))
 }
 
-/// `(column, d column / d s)` of the ray's point at range `s` (the column
-/// distorted, its rate that of the pinhole: the walk's step only needs its
-/// size); `None` behind the projector.
+/// `(column, d column / d s)` of the ray's point at range `s`, through the
+/// projector's distortion; `None` behind the projector.
 #[inline]
 fn column_and_rate(projector: &ProjectorModel, ray: &RayInProjector, s: f64) -> Option<(f64, f64)> {
     let p = ray.q + ray.e * s;
@@ -686,9 +686,14 @@ fn column_and_rate(projector: &ProjectorModel, ray: &RayInProjector, s: f64) -> 
     }
     let inv_z = 1.0 / p.z;
     let (x, y) = (p.x * inv_z, p.y * inv_z);
+    let (dx, dy) = (
+        (ray.e.x - x * ray.e.z) * inv_z,
+        (ray.e.y - y * ray.e.z) * inv_z,
+    );
     let (xd, _) = projector.distortion.distort(x, y);
+    let [dxd_dx, dxd_dy, _, _] = projector.distortion.jacobian(x, y);
     let k = &projector.intrinsics;
-    Some((k.fx * xd + k.cx, k.fx * (ray.e.x - x * ray.e.z) * inv_z))
+    Some((k.fx * xd + k.cx, k.fx * (dxd_dx * dx + dxd_dy * dy)))
 }
 
 /// Entries of [`PHASOR_TABLE`] per turn.
@@ -714,14 +719,10 @@ static PHASOR_TABLE: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock:
 
 #[cfg(test)]
 mod tests {
+    use super::super::analytic::tests::{samples, PERIODS};
     use super::*;
     use crate::calibration::{Head, PinholeModel};
     use nalgebra::{Matrix3, Point3};
-    use rand::SeedableRng;
-    use rand_distr::{Distribution, Normal};
-
-    /// 73, 64, 56, 50 fringes over 1280 px (`scan::dealias_periods_px`).
-    const PERIODS: [f64; 4] = [1280.0 / 73.0, 20.0, 1280.0 / 56.0, 25.6];
 
     /// A device at `centre` looking at `target` (y down), world -> device.
     fn look_at(centre: Point3<f64>, target: Point3<f64>) -> Pose {
@@ -795,27 +796,6 @@ mod tests {
             .unwrap();
         let x = ray.origin_m + ray.direction * range;
         (s.own.project(&x).unwrap().x, s.other.project(&x).unwrap().x)
-    }
-
-    /// The 16 samples of a pixel lit by both projectors.
-    fn samples(xa: f64, xb: f64, a: f64, b: f64, noise: f64, seed: u64) -> Vec<f32> {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let n = Normal::new(0.0, noise.max(1e-12)).unwrap();
-        let tau = std::f64::consts::TAU;
-        PERIODS
-            .iter()
-            .flat_map(|p| (0..4).map(move |step| (p, step)))
-            .map(|(p, step)| {
-                let d = std::f64::consts::FRAC_PI_2 * step as f64;
-                let v = 0.1
-                    + a
-                    + b
-                    + a * (tau * xa / p + d).cos()
-                    + b * (tau * xb / p + d).cos()
-                    + if noise > 0.0 { n.sample(&mut rng) } else { 0.0 };
-                v as f32
-            })
-            .collect()
     }
 
     #[test]

@@ -9,7 +9,7 @@
 //!   -> lit by the own projector only: unchanged
 //!   -> lit by the other projector (and perhaps the own): a Separator per pixel
 //!        (epipolar: one range along the ray; analytic: two free columns),
-//!        every 4th pixel first, the rest starting from those around them
+//!        every 8th pixel of every 8th row first, the rest starting from those
 //!        separated -> own fringe re-expressed as N frames;  refused -> masked
 //! ```
 //!
@@ -122,19 +122,21 @@ pub trait Separator: Sync {
 
 /// Spacing of the pixels separated first, whose solutions the pixels
 /// between them start from ([`Separator::separate_near`]).
-const SEED_GRID: usize = 4;
+const SEED_GRID: usize = 8;
 
-/// The seed-grid corners of the cell holding pixel `i`.
+/// The seed-grid corners of the cell holding pixel `i`, nearest first.
 fn cell_corners(i: usize, width: usize, height: usize) -> [Option<usize>; 4] {
     let (x, y) = (i % width, i / width);
     let (x0, y0) = (x - x % SEED_GRID, y - y % SEED_GRID);
     let at = |cx: usize, cy: usize| (cx < width && cy < height).then(|| cy * width + cx);
-    [
-        at(x0, y0),
-        at(x0 + SEED_GRID, y0),
-        at(x0, y0 + SEED_GRID),
-        at(x0 + SEED_GRID, y0 + SEED_GRID),
-    ]
+    let mut corners = [
+        (x0, y0),
+        (x0 + SEED_GRID, y0),
+        (x0, y0 + SEED_GRID),
+        (x0 + SEED_GRID, y0 + SEED_GRID),
+    ];
+    corners.sort_by_key(|&(cx, cy)| cx.abs_diff(x).pow(2) + cy.abs_diff(y).pow(2));
+    corners.map(|(cx, cy)| at(cx, cy))
 }
 
 /// Pairs of opposite neighbours that must agree (of four): two, since a

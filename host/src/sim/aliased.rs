@@ -3,9 +3,12 @@
 //! same sample, written or rendered here), so the Rust side measures the
 //! networks on data with the exact identity of a training set's folder.
 
-use hil_sim::twin::dataset::{aliased_sample, AliasedPeriods, DatasetKind, DatasetSpec};
+use hil_sim::twin::dataset::{
+    aliased_rig, aliased_sample, AliasedPeriods, DatasetKind, DatasetSpec,
+};
 use hil_sim::twin::TwinError;
 
+use crate::calibration::RigCalibration;
 use crate::raster::Raster;
 use crate::scan::aliasing::FlatFields;
 
@@ -28,6 +31,9 @@ pub struct AliasedSample {
     pub noise_scale: f64,
     /// Fringe periods, DMD pixels.
     pub periods_px: Vec<f64>,
+    /// The rig the dataset renders with (its scenes move, the rig does
+    /// not), as the twin's true devices: what the epipolar de-aliaser needs.
+    pub calibration: RigCalibration,
 }
 
 /// Which held-out samples: seed, count, camera and DMD size, noise range.
@@ -57,6 +63,7 @@ pub fn held_out(set: &AliasedSet, index: usize) -> Result<Vec<AliasedSample>, Tw
         noise_scale: set.noise_scale,
     };
     let (stacks, noise_scale, capture) = aliased_sample(&spec, index)?;
+    let calibration = super::truth::twin_calibration(&aliased_rig(&spec), 2);
     let (w, h) = (set.camera_px.0 as usize, set.camera_px.1 as usize);
     let raster = |data: &Vec<f32>| Raster {
         width: w,
@@ -85,6 +92,7 @@ pub fn held_out(set: &AliasedSet, index: usize) -> Result<Vec<AliasedSample>, Tw
                 overlap: st.overlap.clone(),
                 noise_scale,
                 periods_px: capture.periods_px.clone(),
+                calibration: calibration.clone(),
             }
         })
         .collect())
