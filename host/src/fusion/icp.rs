@@ -12,6 +12,7 @@
 use nalgebra::{Isometry3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 
+use super::nearest_cache::NearestCache;
 use super::robust::mad_scale;
 pub use super::robust::RobustKernel;
 use super::{build_tree, morton_order, nearest_within, FusionError, PointCloud, Tree};
@@ -41,8 +42,9 @@ pub struct IcpParams {
     pub max_correction_rotation_deg: f64,
     /// Largest translation away from the initial guess, metres.
     pub max_correction_translation_m: f64,
-    /// Most source points used while the gate is wider than the final
-    /// gate (coarse alignment); the final iterations use every point.
+    /// Most source points used until the estimate converges on them (the
+    /// wide gates, then the first steps at the final gate); the final
+    /// iterations use every point.
     pub coarse_max_points: usize,
 }
 
@@ -244,22 +246,27 @@ impl<'a> IcpTarget<'a> {
         let mut gate = params.initial_gate_m;
         let mut converged = false;
         let mut iterations = 0;
+        // Until the estimate has converged on an even subsample (every m-th
+        // point in Z-order) it is coarse anyway: the wide gates and the first
+        // steps at the final gate run on the subsample, and only the last
+        // few iterations on every point.
+        let mut coarse = source.len() > params.coarse_max_points;
+        let mut nearest = NearestCache::new(source.len());
         while iterations < params.max_iterations {
-            // While the gate is still wide the estimate is coarse anyway:
-            // an even subsample (every m-th point in Z-order) is enough.
-            let stride = if gate > params.final_gate_m {
+            let stride = if coarse {
                 source.len().div_ceil(params.coarse_max_points)
             } else {
                 1
             };
-            let subsample: Vec<Vector3<f64>>;
-            let used = if stride > 1 {
-                subsample = source.iter().step_by(stride).copied().collect();
-                subsample.as_slice()
-            } else {
-                source
-            };
-            let pairs = self.pairs(used, &transform, gate, iterations, params)?;
+            let pairs = self.pairs(
+                source,
+                stride,
+                &mut nearest,
+                &transform,
+                gate,
+                iterations,
+                params,
+            )?;
             let sigma = robust_scale(&pairs, params.min_scale_m);
             let update =
                 solve_update(&pairs, sigma, params.robust).ok_or(FusionError::Degenerate {
@@ -284,13 +291,24 @@ impl<'a> IcpTarget<'a> {
             let small = step_deg < params.convergence_rotation_deg
                 && step_m < params.convergence_translation_m;
             if small && gate <= params.final_gate_m {
-                converged = true;
-                break;
+                if !coarse {
+                    converged = true;
+                    break;
+                }
+                coarse = false;
             }
             gate = (gate * 0.5).max(params.final_gate_m);
         }
         // Statistics at the transform we return, with the final gate.
-        let pairs = self.pairs(source, &transform, gate, iterations, params)?;
+        let pairs = self.pairs(
+            source,
+            1,
+            &mut nearest,
+            &transform,
+            gate,
+            iterations,
+            params,
+        )?;
         let sigma = robust_scale(&pairs, params.min_scale_m);
         let (mut sum_r2, mut inliers, mut centroid) = (0.0, 0usize, Vector3::zeros());
         for p in &pairs {
@@ -337,29 +355,36 @@ impl<'a> IcpTarget<'a> {
             .collect()
     }
 
-    /// Nearest-target pairs of the moved source within `gate` metres.
+    /// Nearest-target pairs within `gate` metres of every `stride`-th
+    /// source point moved by `transform`; `nearest` remembers the searches
+    /// of earlier iterations (same `source`).
+    #[allow(clippy::too_many_arguments)]
     fn pairs(
         &self,
         source: &[Vector3<f64>],
+        stride: usize,
+        nearest: &mut NearestCache,
         transform: &Isometry3<f64>,
         gate: f64,
         iteration: usize,
         params: &IcpParams,
     ) -> Result<Vec<Pair>, FusionError> {
-        let gate2 = gate * gate;
-        let pairs: Vec<Pair> = source
-            .par_iter()
-            .filter_map(|p| {
-                let q = transform.transform_point(&Point3::from(*p)).coords;
-                let (j, _) = nearest_within(&self.tree, &q, gate2)?;
+        let pairs = nearest.nearest_within(
+            &self.tree,
+            self.points,
+            source,
+            stride,
+            transform,
+            gate,
+            |q, j| {
                 let n = self.normals[j];
-                Some(Pair {
+                Pair {
                     q,
                     n,
                     r: n.dot(&(q - self.points[j])),
-                })
-            })
-            .collect();
+                }
+            },
+        );
         if pairs.len() < params.min_correspondences {
             return Err(FusionError::NoOverlap {
                 correspondences: pairs.len(),

@@ -15,6 +15,7 @@
 pub mod icp;
 pub mod merge;
 pub mod multiview;
+mod nearest_cache;
 pub mod normals;
 pub mod robust;
 pub mod synthetic;

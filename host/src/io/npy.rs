@@ -194,11 +194,31 @@ pub fn encode_npy_f32_rows(width: usize, height: usize, data: &[f32]) -> Vec<u8>
     encode_npy("<f4", width, height, &bytes)
 }
 
+/// The bytes of a float64 `.npy` file of any `shape` holding `data` in C
+/// order (`data.len()` must be the product of `shape`): point lists, 4x4
+/// transforms and the like for numpy-side tools.
+pub fn encode_npy_f64(shape: &[usize], data: &[f64]) -> Vec<u8> {
+    debug_assert_eq!(data.len(), shape.iter().product::<usize>());
+    let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+    encode_npy_shaped("<f8", shape, &bytes)
+}
+
 /// The bytes of a `(height, width)` `.npy` file of element type `descr`
 /// whose little-endian element bytes are `data`.
 fn encode_npy(descr: &str, width: usize, height: usize, data: &[u8]) -> Vec<u8> {
-    let dict =
-        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({height}, {width}), }}");
+    encode_npy_shaped(descr, &[height, width], data)
+}
+
+/// The bytes of a `.npy` file of element type `descr` and `shape` whose
+/// little-endian element bytes are `data`.
+fn encode_npy_shaped(descr: &str, shape: &[usize], data: &[u8]) -> Vec<u8> {
+    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+    // numpy writes a one-element tuple with a trailing comma.
+    let tuple = match dims.len() {
+        1 => format!("({},)", dims[0]),
+        _ => format!("({})", dims.join(", ")),
+    };
+    let dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {tuple}, }}");
     // Magic (6) + version (2) + header length (2) + dict + padding + '\n' = multiple of 64.
     let unpadded = 10 + dict.len() + 1;
     let pad = (64 - unpadded % 64) % 64;
@@ -216,6 +236,20 @@ fn encode_npy(descr: &str, width: usize, height: usize, data: &[u8]) -> Vec<u8> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn float64_arrays_of_any_shape_have_numpy_headers() {
+        let b = encode_npy_f64(&[2, 2, 3], &[0.5; 12]);
+        let header_len = u16::from_le_bytes([b[8], b[9]]) as usize;
+        assert_eq!((10 + header_len) % 64, 0);
+        let header = std::str::from_utf8(&b[10..10 + header_len]).unwrap();
+        assert!(header.contains("'descr': '<f8'") && header.contains("'shape': (2, 2, 3)"));
+        assert_eq!(b.len(), 10 + header_len + 96);
+        let one = encode_npy_f64(&[3], &[1.0, 2.0, 3.0]);
+        assert!(std::str::from_utf8(&one[10..64])
+            .unwrap()
+            .contains("'shape': (3,)"));
+    }
 
     #[test]
     fn header_is_aligned_and_data_follows() {
