@@ -9,7 +9,10 @@
 //! `SLSCAN_BENCH_RUNS=5 cargo bench -p slscan --bench calibration`.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+#[path = "common/peer.rs"]
+mod peer;
+use peer::run_peer;
 use std::time::Instant;
 
 use nalgebra::{Point2, Point3, Rotation3, Vector3};
@@ -155,16 +158,6 @@ fn render_views(camera: &PinholeModel) -> Vec<PlanarView> {
 
 /// OpenCV's solve on the same corners, through the peer script.
 fn opencv_side(dir: &Path, views: &[PlanarView], runs: usize) -> Result<(String, Solved), String> {
-    let python = std::env::var("SLSCAN_PYTHON").unwrap_or_else(|_| "python3".into());
-    let probe = Command::new(&python)
-        .args(["-c", "import cv2"])
-        .output()
-        .map_err(|e| format!("{python} not runnable: {e}"))?;
-    if !probe.status.success() {
-        return Err(format!(
-            "cv2 not importable by {python} (pip install opencv-python-headless)"
-        ));
-    }
     std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
     let n = views[0].board_m.len();
     let board: Vec<f64> = views
@@ -182,21 +175,13 @@ fn opencv_side(dir: &Path, views: &[PlanarView], runs: usize) -> Result<(String,
     write("image.npy", encode_npy_f64(&[views.len(), n, 2], &image))?;
     let job = serde_json::json!({ "width": WIDTH, "height": HEIGHT });
     write("job.json", job.to_string().into_bytes())?;
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/calibrate_opencv.py");
-    let out = Command::new(&python)
-        .arg(&script)
-        .arg(dir)
-        .arg(runs.to_string())
-        .output()
-        .map_err(|e| format!("{python} failed to start: {e}"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "peer failed: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        ));
-    }
-    let r: serde_json::Value =
-        serde_json::from_slice(&out.stdout).map_err(|e| format!("peer's report: {e}"))?;
+    let r = run_peer(
+        "cv2",
+        "opencv-python-headless",
+        "calibrate_opencv.py",
+        dir,
+        runs,
+    )?;
     let f = |key: &str| r[key].as_f64().ok_or(format!("peer's report has no {key}"));
     Ok((
         r["opencv"].as_str().unwrap_or("?").to_owned(),

@@ -12,7 +12,10 @@
 //! Both sides use every core (rayon; Open3D's OpenMP).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+#[path = "common/peer.rs"]
+mod peer;
+use peer::run_peer;
 use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Matrix4, Vector3};
@@ -159,16 +162,6 @@ fn open3d_side(
     (k, noise_m): (usize, f64),
     runs: usize,
 ) -> Result<(String, Vec<(String, Row)>), String> {
-    let python = std::env::var("SLSCAN_PYTHON").unwrap_or_else(|_| "python3".into());
-    let probe = Command::new(&python)
-        .args(["-c", "import open3d"])
-        .output()
-        .map_err(|e| format!("{python} not runnable: {e}"))?;
-    if !probe.status.success() {
-        return Err(format!(
-            "open3d not importable by {python} (pip install open3d)"
-        ));
-    }
     std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
     let write = |name: &str, bytes: Vec<u8>| {
         std::fs::write(dir.join(name), bytes).map_err(|e| format!("{name}: {e}"))
@@ -187,21 +180,7 @@ fn open3d_side(
         "noise_m": noise_m,
     });
     write("job.json", job.to_string().into_bytes())?;
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/icp_open3d.py");
-    let out = Command::new(&python)
-        .arg(&script)
-        .arg(dir)
-        .arg(runs.to_string())
-        .output()
-        .map_err(|e| format!("{python} failed to start: {e}"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "peer failed: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        ));
-    }
-    let report: serde_json::Value =
-        serde_json::from_slice(&out.stdout).map_err(|e| format!("peer's report: {e}"))?;
+    let report = run_peer("open3d", "open3d", "icp_open3d.py", dir, runs)?;
     let normals = report["normals_s"]
         .as_f64()
         .map(Duration::from_secs_f64)

@@ -30,7 +30,10 @@
 //! count orders reliably (98.51 % kept, RMS 0.0260).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+#[path = "common/peer.rs"]
+mod peer;
+use peer::run_peer;
 use std::time::Instant;
 
 use rand::SeedableRng;
@@ -223,32 +226,8 @@ struct Peer {
 }
 
 /// Runs the numpy peer on the frames written to `dir`; `Err` says why it did not run.
-fn run_peer(dir: &Path, truth: &Raster<f32>, runs: usize) -> Result<Peer, String> {
-    let python = std::env::var("SLSCAN_PYTHON").unwrap_or_else(|_| "python3".into());
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/phase_unwrap.py");
-    let probe = Command::new(&python)
-        .args(["-c", "import numpy"])
-        .output()
-        .map_err(|e| format!("{python} not runnable: {e}"))?;
-    if !probe.status.success() {
-        return Err(format!(
-            "numpy not importable by {python} (pip install numpy)"
-        ));
-    }
-    let out = Command::new(&python)
-        .arg(&script)
-        .arg(dir)
-        .arg(runs.to_string())
-        .output()
-        .map_err(|e| format!("{python} failed to start: {e}"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "peer failed: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        ));
-    }
-    let report: serde_json::Value =
-        serde_json::from_slice(&out.stdout).map_err(|e| format!("peer's report: {e}"))?;
+fn numpy_side(dir: &Path, truth: &Raster<f32>, runs: usize) -> Result<Peer, String> {
+    let report = run_peer("numpy", "numpy", "phase_unwrap.py", dir, runs)?;
     let ms = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN) * 1e3;
     let bytes = std::fs::read(dir.join("peer_absolute.npy")).map_err(|e| e.to_string())?;
     let absolute = slscan::io::npy::decode_npy_2d(&bytes).map_err(|e| e.to_string())?;
@@ -326,7 +305,7 @@ fn main() {
         dir.display()
     );
 
-    let peer = run_peer(&dir, &truth, runs);
+    let peer = numpy_side(&dir, &truth, runs);
     match &peer {
         Ok(p) => println!("peer: numpy {} (one thread), best of {runs}", p.version),
         Err(why) => println!("peer skipped: {why}"),
