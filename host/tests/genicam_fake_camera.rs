@@ -55,7 +55,7 @@ fn trigger(camera: &mut GenicamCamera, n: usize) {
     camera.arm(n);
     for _ in 0..n {
         camera.software_trigger().unwrap();
-        sleep(Duration::from_millis(80));
+        sleep(Duration::from_millis(120));
     }
 }
 
