@@ -12,6 +12,7 @@
 //! Points are `f64` here: ICP accumulates normal equations over a million
 //! points and we want micrometre agreement; the PLY writer narrows to `f32`.
 
+mod cell_knn;
 pub mod icp;
 pub mod merge;
 pub mod multiview;
@@ -336,20 +337,61 @@ pub(crate) fn nearest_within(
 /// leaves, so a million-point tree stays in cache; in the order the points
 /// come (a quasi-random sample, or rows of two cameras) it does not.
 pub(crate) fn morton_order(points: &[Vector3<f64>]) -> Vec<usize> {
-    let (lo, hi) = points.iter().fold(
-        (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN)),
-        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
-    );
-    let extent = (hi - lo).max().max(f64::MIN_POSITIVE);
-    let cell = |v: f64, lo: f64| (((v - lo) / extent) * 2_097_151.0) as u64;
-    let key = |p: &Vector3<f64>| {
-        spread_bits(cell(p.x, lo.x))
-            | spread_bits(cell(p.y, lo.y)) << 1
-            | spread_bits(cell(p.z, lo.z)) << 2
-    };
-    let mut keyed: Vec<(u64, usize)> = points.par_iter().map(key).zip(0..points.len()).collect();
-    keyed.par_sort_unstable();
-    keyed.into_iter().map(|(_, i)| i).collect()
+    MortonKeys::of(points)
+        .sorted
+        .into_iter()
+        .map(|(_, i)| i)
+        .collect()
+}
+
+/// Finest Morton level: 21 bits per axis fill a u64 key.
+pub(crate) const MORTON_LEVELS: u32 = 21;
+
+/// Every point's Morton key over the cloud's bounding cube, sorted: at level
+/// `l` (0..=21) a key's top `3 l` bits name its cell of side `extent / 2^l`,
+/// so the points of each cell, at every level, are contiguous.
+pub(crate) struct MortonKeys {
+    /// Lowest corner of the bounding box.
+    pub lo: Vector3<f64>,
+    /// Longest side of the bounding box (the cube's side), metres.
+    pub extent: f64,
+    /// (key, point index), ascending.
+    pub sorted: Vec<(u64, usize)>,
+}
+
+impl MortonKeys {
+    /// Keys of `points` (finite), sorted.
+    pub fn of(points: &[Vector3<f64>]) -> MortonKeys {
+        let (lo, hi) = points.iter().fold(
+            (Vector3::repeat(f64::MAX), Vector3::repeat(f64::MIN)),
+            |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+        );
+        let extent = (hi - lo).max().max(f64::MIN_POSITIVE);
+        let keys = MortonKeys {
+            lo,
+            extent,
+            sorted: Vec::new(),
+        };
+        let mut sorted: Vec<(u64, usize)> = points
+            .par_iter()
+            .map(|p| keys.key(&keys.cell(p)))
+            .zip(0..points.len())
+            .collect();
+        sorted.par_sort_unstable();
+        MortonKeys { sorted, ..keys }
+    }
+
+    /// The finest-level cell (21-bit integer coordinates) holding `p`.
+    pub fn cell(&self, p: &Vector3<f64>) -> [u64; 3] {
+        let max = ((1u64 << MORTON_LEVELS) - 1) as f64;
+        let q = |v: f64, lo: f64| (((v - lo) / self.extent) * max) as u64;
+        [q(p.x, self.lo.x), q(p.y, self.lo.y), q(p.z, self.lo.z)]
+    }
+
+    /// The Morton key of integer cell coordinates (each under 2^21).
+    pub fn key(&self, c: &[u64; 3]) -> u64 {
+        spread_bits(c[0]) | spread_bits(c[1]) << 1 | spread_bits(c[2]) << 2
+    }
 }
 
 /// The low 21 bits of `v` spread to every third bit.

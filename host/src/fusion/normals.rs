@@ -1,12 +1,8 @@
 //! Per-point normals by PCA over the k nearest neighbours.
 
-use std::num::NonZeroUsize;
-
-use kiddo::SquaredEuclidean;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
-use rayon::prelude::*;
 
-use super::{build_tree, check_finite, morton_order, FusionError, Tree};
+use super::{cell_knn, check_finite, FusionError};
 
 /// Fewest neighbours that define a plane with some noise averaging.
 pub const MIN_NEIGHBOURS: usize = 3;
@@ -36,42 +32,14 @@ pub fn estimate_normals(
     }
     check_finite("normals", points)?;
     check_finite("sensor_origin", std::slice::from_ref(sensor_origin))?;
-    let tree = build_tree(points)?;
-    Ok(normals_with_tree(&tree, points, k, sensor_origin))
-}
-
-/// As [`estimate_normals`] with a tree already built over `points`
-/// (`k >= 3`, `points.len() >= k`, finite input: checked by the caller).
-pub(crate) fn normals_with_tree(
-    tree: &Tree,
-    points: &[Vector3<f64>],
-    k: usize,
-    sensor_origin: &Vector3<f64>,
-) -> Vec<Vector3<f64>> {
-    let k = NonZeroUsize::new(k).expect("k >= 3 checked by the caller");
-    let order = morton_order(points);
-    let found: Vec<Vector3<f64>> = order
-        .par_iter()
-        .map(|&i| {
-            let p = &points[i];
-            let neighbours = tree
-                .query(&[p.x, p.y, p.z])
-                .nearest_n::<SquaredEuclidean<f64>>(k)
-                .execute();
-            let idx: Vec<usize> = neighbours.iter().map(|n| n.item as usize).collect();
-            let normal = pca_normal(points, &idx);
-            if normal.dot(&(sensor_origin - p)) < 0.0 {
-                -normal
-            } else {
-                normal
-            }
-        })
-        .collect();
-    let mut normals = vec![Vector3::zeros(); points.len()];
-    for (&i, n) in order.iter().zip(found) {
-        normals[i] = n;
-    }
-    normals
+    cell_knn::map_neighbourhoods(points, k, |i, neighbours| {
+        let normal = pca_normal(points, neighbours);
+        if normal.dot(&(sensor_origin - points[i])) < 0.0 {
+            -normal
+        } else {
+            normal
+        }
+    })
 }
 
 /// Smallest-variance direction of the points at `idx`.
