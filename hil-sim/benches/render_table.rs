@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use hil_sim::twin::scenes::{built_in, Detail};
 use hil_sim::twin::{
-    BitDepth, Exposure, Fringe, Pattern, ProjectorTimeline, Renderer, SensorModel,
+    BitDepth, CameraRays, Exposure, Fringe, Pattern, ProjectorTimeline, Renderer, SensorModel,
 };
 
 const DETAIL: Detail = Detail {
@@ -80,6 +80,15 @@ fn main() {
         "geometry set-up: rays, hits, shadows (once per pose)",
         3,
         || Renderer::new(&scene, &rig, 0, 0.0).expect("renderer"),
+    );
+    measure("camera rays alone (once per rig)", 3, || {
+        CameraRays::new(&rig, 0, 1).expect("rays")
+    });
+    let rays = CameraRays::new(&rig, 0, 1).expect("rays");
+    measure(
+        "geometry set-up of a new pose on the rig's cached rays",
+        3,
+        || Renderer::posed(&scene, &rig, &rays, 0.0).expect("renderer"),
     );
     let renderer = Renderer::new(&scene, &rig, 0, 0.0).expect("renderer");
     let exposure = Exposure {

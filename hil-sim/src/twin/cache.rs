@@ -6,7 +6,7 @@
 use nalgebra::Point3;
 use rayon::prelude::*;
 
-use super::device::Rig;
+use super::device::{Pinhole, Rig};
 use super::error::TwinError;
 use super::geometry::{Ray, V3};
 use super::medium::Medium;
@@ -139,33 +139,29 @@ impl CameraGeometry {
         camera: usize,
         samples: u32,
     ) -> Result<CameraGeometry, TwinError> {
-        rig.validate()?;
+        Self::from_rays(scene, rig, &CameraRays::new(rig, camera, samples)?)
+    }
+
+    /// Casts `rays` (computed for `rig`) into the posed scene: what
+    /// [`Self::sampled`] does after computing the rays, so the poses of a
+    /// moving scene seen by a fixed rig share them.
+    pub fn from_rays(
+        scene: &PosedScene,
+        rig: &Rig,
+        rays: &CameraRays,
+    ) -> Result<CameraGeometry, TwinError> {
+        rays.check_rig(rig)?;
         scene.scene().validate()?;
-        let cam = rig.cameras.get(camera).ok_or(TwinError::NoSuchCamera {
-            index: camera,
-            count: rig.cameras.len(),
-        })?;
-        if !(1..=MAX_PIXEL_SAMPLES).contains(&samples) {
-            return Err(TwinError::BadParameter {
-                name: "pixel samples per axis",
-                value: f64::from(samples),
-                why: "must be 1..=16",
-            });
-        }
-        let (w, h) = (
-            cam.model.intrinsics.width * samples,
-            cam.model.intrinsics.height * samples,
-        );
-        let k = f64::from(samples);
+        let (w, h) = (rays.width, rays.height);
+        let camera = rays.camera;
         let np = rig.projectors.len();
-        let rows: Vec<RowGeom> = (0..h)
-            .into_par_iter()
-            .map(|y| {
+        let rows: Vec<RowGeom> = rays
+            .rays
+            .par_chunks(w as usize)
+            .map(|row_rays| {
                 let mut row = RowGeom::with_capacity(w as usize, np);
-                let yc = (f64::from(y) + 0.5) / k - 0.5;
-                for x in 0..w {
-                    let xc = (f64::from(x) + 0.5) / k - 0.5;
-                    pixel(scene, rig, camera, xc, yc, &mut row);
+                for ray in row_rays {
+                    pixel(scene, rig, camera, ray.as_ref(), &mut row);
                 }
                 row
             })
@@ -209,6 +205,93 @@ impl CameraGeometry {
     }
 }
 
+/// The world ray of every (sub)pixel of one camera, out of its port into
+/// the water when there is one: they depend on the rig alone (lens
+/// distortion is undone by Newton steps per pixel), so a fixed rig computes
+/// them once for all the poses of a moving scene.
+#[derive(Clone, Debug)]
+pub struct CameraRays {
+    camera: usize,
+    /// The camera and medium the rays were computed for, to refuse another rig.
+    model: Pinhole,
+    medium: Medium,
+    /// Rays per pixel and axis.
+    samples: u32,
+    width: u32,
+    height: u32,
+    /// Row-major; None where the ray cannot leave the port.
+    rays: Vec<Option<Ray>>,
+}
+
+impl CameraRays {
+    /// The rays of camera `camera` of `rig`, `samples` x `samples` per pixel
+    /// on a regular grid over its area (see [`CameraGeometry::sampled`]).
+    pub fn new(rig: &Rig, camera: usize, samples: u32) -> Result<CameraRays, TwinError> {
+        rig.validate()?;
+        let cam = rig.cameras.get(camera).ok_or(TwinError::NoSuchCamera {
+            index: camera,
+            count: rig.cameras.len(),
+        })?;
+        if !(1..=MAX_PIXEL_SAMPLES).contains(&samples) {
+            return Err(TwinError::BadParameter {
+                name: "pixel samples per axis",
+                value: f64::from(samples),
+                why: "must be 1..=16",
+            });
+        }
+        let (w, h) = (
+            cam.model.intrinsics.width * samples,
+            cam.model.intrinsics.height * samples,
+        );
+        let k = f64::from(samples);
+        let rays = (0..h)
+            .into_par_iter()
+            .flat_map_iter(|y| {
+                let yc = (f64::from(y) + 0.5) / k - 0.5;
+                (0..w).map(move |x| camera_ray(rig, camera, (f64::from(x) + 0.5) / k - 0.5, yc))
+            })
+            .collect();
+        Ok(CameraRays {
+            camera,
+            model: cam.model.clone(),
+            medium: rig.medium,
+            samples,
+            width: w,
+            height: h,
+            rays,
+        })
+    }
+
+    /// Which camera of the rig the rays belong to.
+    pub fn camera(&self) -> usize {
+        self.camera
+    }
+
+    /// Rays per pixel and axis.
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// Refuses a rig whose camera or medium differs from the one the rays
+    /// were computed for.
+    fn check_rig(&self, rig: &Rig) -> Result<(), TwinError> {
+        let same = rig
+            .cameras
+            .get(self.camera)
+            .is_some_and(|c| c.model == self.model)
+            && rig.medium == self.medium;
+        if same {
+            Ok(())
+        } else {
+            Err(TwinError::BadParameter {
+                name: "camera rays",
+                value: self.camera as f64,
+                why: "were computed for another camera or medium than this rig's",
+            })
+        }
+    }
+}
+
 /// The camera ray of pixel (x, y) in the world, and where its water path starts.
 fn camera_ray(rig: &Rig, camera: usize, x: f64, y: f64) -> Option<Ray> {
     let model = &rig.cameras[camera].model;
@@ -225,7 +308,7 @@ fn camera_ray(rig: &Rig, camera: usize, x: f64, y: f64) -> Option<Ray> {
     }
 }
 
-fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, x: f64, y: f64, row: &mut RowGeom) {
+fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, ray: Option<&Ray>, row: &mut RowGeom) {
     let s = scene.scene();
     let direct = s.ambient_direct.map(|a| a as f32);
     let miss = |row: &mut RowGeom| {
@@ -239,10 +322,10 @@ fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, x: f64, y: f64, row: &mut
             .iter_mut()
             .for_each(|p| p.push((NAN2, [0.0; 3], Illum::NoSurface)));
     };
-    let Some(ray) = camera_ray(rig, camera, x, y) else {
+    let Some(ray) = ray else {
         return miss(row);
     };
-    let Some(hit) = scene.intersect(&ray, 0.0, f64::INFINITY) else {
+    let Some(hit) = scene.intersect(ray, 0.0, f64::INFINITY) else {
         return miss(row);
     };
     let cam_model = &rig.cameras[camera].model;

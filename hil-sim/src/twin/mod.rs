@@ -68,7 +68,7 @@ pub mod sensor;
 pub mod truth;
 pub mod twin_rig;
 
-pub use cache::{CameraGeometry, Illum};
+pub use cache::{CameraGeometry, CameraRays, Illum};
 pub use device::{look_at, Camera, Distortion, Intrinsics, Pinhole, Projector, Rig};
 pub use error::TwinError;
 pub use geometry::{Pose, Ray, Shape, V3};

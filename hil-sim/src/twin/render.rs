@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 use rand::Rng;
 use rayon::prelude::*;
 
-use super::cache::CameraGeometry;
+use super::cache::{CameraGeometry, CameraRays};
 use super::device::Rig;
 use super::error::TwinError;
 use super::medium::Medium;
@@ -154,13 +154,42 @@ impl Renderer {
                 &posed, rig, camera, samples,
             )?))
         };
-        Ok(Renderer {
+        Ok(Self::with_geometry(rig, geometry, sampled, samples))
+    }
+
+    /// As [`Self::new`] with the camera's rays already computed for this rig
+    /// (one per pixel): a moving scene seen by a fixed rig pays for the rays
+    /// once, and each new pose only for casting them.
+    pub fn posed(
+        scene: &Scene,
+        rig: &Rig,
+        rays: &CameraRays,
+        time_s: f64,
+    ) -> Result<Renderer, TwinError> {
+        if rays.samples() != 1 {
+            return Err(TwinError::BadParameter {
+                name: "camera rays per pixel and axis",
+                value: f64::from(rays.samples()),
+                why: "a posed renderer takes one ray per pixel",
+            });
+        }
+        let geometry = CameraGeometry::from_rays(&scene.at(time_s), rig, rays)?;
+        Ok(Self::with_geometry(rig, Arc::new(geometry), None, 1))
+    }
+
+    fn with_geometry(
+        rig: &Rig,
+        geometry: Arc<CameraGeometry>,
+        sampled: Option<Arc<CameraGeometry>>,
+        pixel_samples: u32,
+    ) -> Renderer {
+        Renderer {
             rig: rig.clone(),
             geometry,
             sampled,
-            pixel_samples: samples,
+            pixel_samples,
             defocus_cache: Mutex::new(Vec::new()),
-        })
+        }
     }
 
     /// Rays per pixel and axis the image is rendered with.
@@ -559,11 +588,13 @@ pub fn render_exposure(
 ) -> Result<Frame, TwinError> {
     exposure.validate()?;
     let mid = 0.5 * (exposure.start_s + exposure.end_s);
-    let truth_renderer = Renderer::new(scene, rig, camera, mid)?;
+    // Every pose (the truth's and each slice's) casts the same rays.
+    let rays = CameraRays::new(rig, camera, 1)?;
+    let truth_renderer = Renderer::posed(scene, rig, &rays, mid)?;
     let exposed = if scene.is_dynamic() {
         let mut acc: Option<Exposed> = None;
         for slice in motion_slices(timelines, exposure) {
-            let r = Renderer::new(scene, rig, camera, slice.pose_s)?;
+            let r = Renderer::posed(scene, rig, &rays, slice.pose_s)?;
             let e = r.exposed(timelines, slice.exposure)?;
             match acc.as_mut() {
                 None => acc = Some(e),

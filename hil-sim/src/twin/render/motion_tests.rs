@@ -289,3 +289,41 @@ fn with_dark_gaps_each_patterns_light_is_still_posed_at_its_own_middle() {
         .fold(0.0f32, f32::max);
     assert!(worst <= 1e-6 * peak, "worst {worst} of peak {peak}");
 }
+
+/// A posed renderer on rays computed once for the rig gives the geometry of
+/// a renderer that computes them itself, bit for bit, at every pose; rays of
+/// another rig, or sub-pixel rays, are refused.
+#[test]
+fn shared_camera_rays_give_the_same_geometry_and_belong_to_one_rig() {
+    let detail = Detail {
+        camera: (96, 64),
+        projector: (120, 80),
+    };
+    let (scene, rig) = built_in("rotor", &detail).unwrap();
+    let rays = CameraRays::new(&rig, 0, 1).unwrap();
+    for t in [0.0, 0.0042, 0.0137] {
+        let own = Renderer::new(&scene, &rig, 0, t).unwrap();
+        let shared = Renderer::posed(&scene, &rig, &rays, t).unwrap();
+        let (a, b) = (own.geometry(), shared.geometry());
+        let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&a.point_m), bits(&b.point_m), "t = {t}");
+        assert_eq!(bits(&a.normal), bits(&b.normal), "t = {t}");
+        assert_eq!(a.object, b.object);
+        assert_eq!(a.projectors[0].illum, b.projectors[0].illum, "t = {t}");
+        assert_eq!(bits(&a.projectors[0].gain), bits(&b.projectors[0].gain));
+    }
+    let mut moved = rig.clone();
+    moved.cameras[0].model.intrinsics.fx *= 1.01;
+    assert!(matches!(
+        Renderer::posed(&scene, &moved, &rays, 0.0),
+        Err(TwinError::BadParameter {
+            name: "camera rays",
+            ..
+        })
+    ));
+    let sub_pixel = CameraRays::new(&rig, 0, 2).unwrap();
+    assert!(matches!(
+        Renderer::posed(&scene, &rig, &sub_pixel, 0.0),
+        Err(TwinError::BadParameter { .. })
+    ));
+}
