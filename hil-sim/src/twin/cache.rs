@@ -150,6 +150,7 @@ impl CameraGeometry {
         rig: &Rig,
         rays: &CameraRays,
     ) -> Result<CameraGeometry, TwinError> {
+        rig.validate()?;
         rays.check_rig(rig)?;
         scene.scene().validate()?;
         let (w, h) = (rays.width, rays.height);

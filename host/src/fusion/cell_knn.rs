@@ -119,7 +119,8 @@ struct Scratch {
     wide: Block,
     /// Squared distances of the block's points to one query point.
     dist: Vec<f64>,
-    /// (squared distance, index) of the k nearest so far, ascending.
+    /// (squared distance, index) of the candidates within reach; its
+    /// first k are the answer once a point is proven.
     best: Vec<(f64, usize)>,
     /// The answer handed to the caller.
     neighbours: Vec<usize>,
