@@ -263,11 +263,6 @@ impl CameraRays {
         })
     }
 
-    /// Which camera of the rig the rays belong to.
-    pub fn camera(&self) -> usize {
-        self.camera
-    }
-
     /// Rays per pixel and axis.
     pub fn samples(&self) -> u32 {
         self.samples

@@ -100,11 +100,9 @@ struct CellGrid {
     level: u32,
     /// Side of a cell, metres.
     side_m: f64,
-    /// Key of each occupied cell (its points' keys shifted to `level`), ascending.
-    cell_keys: Vec<u64>,
     /// Cell `c` holds `keys.sorted[start[c]..start[c + 1]]`.
     start: Vec<usize>,
-    /// Cell key to cell number.
+    /// Cell key (its points' keys shifted to `level`) to cell number.
     cell_of_key: CellIndex,
     /// The points in key order, so that a cell's points are one slice.
     sorted_points: Block,
@@ -218,7 +216,6 @@ impl CellGrid {
             keys,
             level,
             side_m,
-            cell_keys,
             start,
             cell_of_key,
             sorted_points,
@@ -226,7 +223,7 @@ impl CellGrid {
     }
 
     fn cell_count(&self) -> usize {
-        self.cell_keys.len()
+        self.start.len() - 1
     }
 
     /// Integer coordinates of cell `cell` at the grid's level.
