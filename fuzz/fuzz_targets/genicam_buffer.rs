@@ -2,7 +2,8 @@
 //! outside the program): the first 9 bytes give the declared pixel format,
 //! width and height (a camera's claims, which the bytes may not
 //! back), the rest the image bytes, into
-//! `slscan::rig::genicam::pixels::decode_frame`; and the same bytes as a
+//! `slscan::rig::genicam::pixels::decode_frame` and, for the colour
+//! formats (RGB8, BGR8, Bayer 8/12/16), `decode_colour_frame`; and the same bytes as a
 //! stream's arrivals (id, stamps, status) into
 //! `slscan::rig::genicam::ledger::check_arrivals`. No panic and no
 //! allocation from a claimed size the bytes do not back; a decoded frame
@@ -12,7 +13,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use slscan::rig::genicam::ledger::{check_arrivals, id_step, Arrival, ArrivalStatus};
-use slscan::rig::genicam::pixels::{decode_frame, PixelFormat};
+use slscan::rig::genicam::pixels::{decode_colour_frame, decode_frame, PixelFormat};
 
 fuzz_target!(|data: &[u8]| {
     if data.len() < 9 {
@@ -25,6 +26,14 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(frame) = decode_frame(format, width, height, bytes) {
         assert_eq!(frame.data.len(), width as usize * height as usize);
         assert!(frame.data.iter().all(|v| (0.0..=1.0).contains(v)));
+    }
+    if let Ok(planes) = decode_colour_frame(format, width, height, bytes) {
+        assert!(format.is_colour());
+        for plane in &planes {
+            assert_eq!(plane.data.len(), width as usize * height as usize);
+            // A Bayer mosaic one pixel wide or high lacks a colour (NaN).
+            assert!(plane.data.iter().all(|v| v.is_nan() || (0.0..=1.0).contains(v)));
+        }
     }
 
     let expected = data[7] as usize % 16;

@@ -12,10 +12,14 @@
 use std::thread::sleep;
 use std::time::Duration;
 
-use slscan::rig::genicam::aravis_camera::GenicamCamera;
+use slscan::raster::Raster;
+use slscan::rig::bayer::Cfa;
+use slscan::rig::camera_source::FrameSource;
+use slscan::rig::genicam::aravis_camera::{GenicamCamera, GenicamCameras};
 use slscan::rig::genicam::{
     ArrivalStatus, GenicamError, GenicamSettings, LedgerError, PixelFormat,
 };
+use slscan::rig::RigError;
 
 #[path = "support/fake_gv_camera.rs"]
 mod fake_gv_camera;
@@ -216,4 +220,93 @@ fn an_unknown_id_and_an_unoffered_format_are_refused_by_name() {
         }
         other => panic!("expected a pixel-format refusal, got {:?}", other.err()),
     }
+}
+
+/// Opens fake camera `serial` in `format` and takes `n` triggered frames
+/// through the rig's frame source, as colour planes, with their block ids.
+fn colour_frames(serial: &str, format: PixelFormat, n: usize) -> Vec<([Raster<f32>; 3], u64)> {
+    let fake = FakeGvCamera::start(serial, 0);
+    let camera = open_settled(&fake.id, &settings(format, "Software"));
+    let mut cameras = GenicamCameras::new(vec![camera]);
+    cameras.arm(&[n]).unwrap();
+    for _ in 0..n {
+        cameras.camera(0).unwrap().software_trigger().unwrap();
+        sleep(Duration::from_millis(120));
+    }
+    let frames = cameras
+        .take_colour_frames(0)
+        .expect("one colour frame per trigger");
+    let ids = cameras
+        .camera(0)
+        .unwrap()
+        .last_arrivals()
+        .iter()
+        .map(|a| a.frame_id);
+    frames.into_iter().zip(ids).collect()
+}
+
+#[test]
+fn colour_frames_arrive_as_planes_from_rgb8_and_a_bayer_mosaic() {
+    // The fake camera paints colour index (x + y + block id) mod 255 of a
+    // jet colour map. RGB8 frames give the map (a row holds every index),
+    // which then predicts every recorded sample of a Bayer frame: a wrong
+    // channel order or mosaic phase reads another colour's value.
+    let rgb = colour_frames("SLTRGB", PixelFormat::Rgb8, 3);
+    assert_eq!(rgb.len(), 3);
+    let (planes, id) = &rgb[0];
+    let map: Vec<[f32; 3]> = (0..255)
+        .map(|index| {
+            let x = (index + 255 - (*id % 255) as usize) % 255;
+            [0, 1, 2].map(|c| *planes[c].at(x, 0))
+        })
+        .collect();
+    // The map is a jet: blue at its low end, red at its high end.
+    assert!(
+        map[0][0] == 0.0 && map[0][1] == 0.0 && map[0][2] > 0.5,
+        "{:?}",
+        map[0]
+    );
+    assert!(
+        map[254][0] > 0.5 && map[254][1] == 0.0 && map[254][2] == 0.0,
+        "{:?}",
+        map[254]
+    );
+    for (planes, id) in &rgb {
+        for &(x, y) in &[(0, 0), (17, 3), (639, 479), (300, 200)] {
+            let index = (x + y + *id as usize) % 255;
+            let got = [0, 1, 2].map(|c| *planes[c].at(x, y));
+            assert_eq!(got, map[index], "RGB8 frame {id} ({x}, {y})");
+        }
+    }
+    // BayerGR8 (the fake camera's RG8 and BG8 mosaics have red and blue
+    // swapped against PFNC's layout; its GR8 and GB8 follow it).
+    let cfa = Cfa::Gr;
+    for (planes, id) in colour_frames("SLTBAY", PixelFormat::Bayer8(cfa), 3) {
+        for plane in &planes {
+            assert_eq!((plane.width, plane.height), (640, 480));
+            assert!(plane.data.iter().all(|v| (0.0..=1.0).contains(v)));
+        }
+        for y in [0, 1, 2, 3, 200, 479] {
+            for x in [0, 1, 2, 3, 301, 639] {
+                let c = cfa.colour_at(x, y);
+                let want = map[(x + y + id as usize) % 255][c];
+                assert_eq!(
+                    *planes[c].at(x, y),
+                    want,
+                    "Bayer frame {id} ({x}, {y}) colour {c}"
+                );
+            }
+        }
+    }
+
+    // A monochrome camera has no colour frames: a typed error before any
+    // frame is read.
+    let fake = FakeGvCamera::start("SLTMONO", 0);
+    let camera = open_settled(&fake.id, &settings(PixelFormat::Mono8, "Software"));
+    let mut cameras = GenicamCameras::new(vec![camera]);
+    cameras.arm(&[1]).unwrap();
+    assert!(matches!(
+        cameras.take_colour_frames(0),
+        Err(RigError::NotColour { head: 0 })
+    ));
 }

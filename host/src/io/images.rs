@@ -207,6 +207,59 @@ pub fn load_gray(path: &Path) -> Result<Frame, ImageError> {
     })
 }
 
+/// A loaded colour frame with its source bit depth.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColourFrame {
+    /// Red, green and blue planes in [0, 1].
+    pub planes: [Raster<f32>; 3],
+    /// 8 or 16.
+    pub bit_depth: u8,
+}
+
+/// Loads one colour frame (8- or 16-bit RGB or RGBA PNG/TIFF, alpha
+/// ignored) as its R, G and B planes in [0, 1]; a grey image is
+/// [`ImageError::UnsupportedFormat`]: reduced to one plane it lost the colours.
+pub fn load_colour(path: &Path) -> Result<ColourFrame, ImageError> {
+    let img = image::open(path).map_err(|source| ImageError::Decode {
+        path: path.to_owned(),
+        source,
+    })?;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let (samples, bit_depth): (Vec<f32>, u8) = match &img {
+        DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) => (
+            img.to_rgb8()
+                .as_raw()
+                .iter()
+                .map(|&v| f32::from(v) / 255.0)
+                .collect(),
+            8,
+        ),
+        DynamicImage::ImageRgb16(_) | DynamicImage::ImageRgba16(_) => (
+            img.to_rgb16()
+                .as_raw()
+                .iter()
+                .map(|&v| f32::from(v) / 65535.0)
+                .collect(),
+            16,
+        ),
+        other => {
+            return Err(ImageError::UnsupportedFormat {
+                path: path.to_owned(),
+                format: format!(
+                    "{:?} (a colour frame must be 8- or 16-bit RGB)",
+                    other.color()
+                ),
+            })
+        }
+    };
+    let planes = [0, 1, 2].map(|c| Raster {
+        width: w,
+        height: h,
+        data: samples.iter().skip(c).step_by(3).copied().collect(),
+    });
+    Ok(ColourFrame { planes, bit_depth })
+}
+
 /// Limits for [`check_exposure`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ExposureLimits {

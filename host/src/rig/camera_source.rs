@@ -32,6 +32,12 @@ pub trait FrameSource {
     /// order, values in [0, 1]. Waits for them (the source's own timeout);
     /// fails with [`RigError::FrameCount`] when too few or too many came.
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError>;
+    /// The same frames as [`FrameSource::take_frames`], each as its red,
+    /// green and blue planes, for colour cameras (the high-speed mode); a
+    /// source of grey frames answers [`RigError::NotColour`].
+    fn take_colour_frames(&mut self, head: usize) -> Result<Vec<[Raster<f32>; 3]>, RigError> {
+        Err(RigError::NotColour { head })
+    }
 }
 
 /// A boxed source is a source: the CLI picks the cameras at run time.
@@ -46,5 +52,9 @@ impl<T: FrameSource + ?Sized> FrameSource for Box<T> {
 
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
         (**self).take_frames(head)
+    }
+
+    fn take_colour_frames(&mut self, head: usize) -> Result<Vec<[Raster<f32>; 3]>, RigError> {
+        (**self).take_colour_frames(head)
     }
 }

@@ -6,7 +6,8 @@
 //!   `FRAMES/A/` holds camera A's frames, `FRAMES/B/` camera B's. (Vendor
 //!   tools save one camera per folder more readily than by name pattern.)
 //! - **One image file per trigger**: 8- or 16-bit grey (or RGB, reduced to
-//!   luma) PNG or TIFF (`.png`, `.tif`, `.tiff`, any case). Other files, and
+//!   luma; the high-speed mode reads RGB as its three planes and refuses
+//!   grey) PNG or TIFF (`.png`, `.tif`, `.tiff`, any case). Other files, and
 //!   hidden ones (name starting with `.`), are ignored, so a tool that writes
 //!   `frame.png.part` or `.frame.png.tmp` and renames is read only once
 //!   renamed.
@@ -42,7 +43,7 @@ use std::time::{Duration, Instant, SystemTime};
 use super::camera_source::FrameSource;
 use super::RigError;
 use crate::calibration::RigCalibration;
-use crate::io::images::load_gray;
+use crate::io::images::{load_colour, load_gray};
 use crate::raster::Raster;
 
 /// One head's camera: where its frames land and their size.
@@ -182,13 +183,47 @@ impl FolderCamera {
 
     /// Reads frame `frame` of head `head`: decoded, size-checked, normalised.
     fn read_frame(&self, head: usize, frame: usize, path: &Path) -> Result<Raster<f32>, RigError> {
-        let expected = self.head(head)?.image_size_px;
         let loaded = load_gray(path).map_err(|source| RigError::FrameDecode {
             head,
             frame,
             source,
         })?;
-        let got = loaded.image.size();
+        let mut image = loaded.image;
+        self.check_size(head, frame, path, image.size())?;
+        self.rescale(head, frame, path, loaded.bit_depth, &mut image.data)?;
+        Ok(image)
+    }
+
+    /// Reads colour frame `frame` of head `head` (RGB): its planes decoded,
+    /// size-checked, normalised together.
+    fn read_colour_frame(
+        &self,
+        head: usize,
+        frame: usize,
+        path: &Path,
+    ) -> Result<[Raster<f32>; 3], RigError> {
+        let loaded = load_colour(path).map_err(|source| RigError::FrameDecode {
+            head,
+            frame,
+            source,
+        })?;
+        let mut planes = loaded.planes;
+        self.check_size(head, frame, path, planes[0].size())?;
+        for plane in &mut planes {
+            self.rescale(head, frame, path, loaded.bit_depth, &mut plane.data)?;
+        }
+        Ok(planes)
+    }
+
+    /// Fails unless a frame of `got` pixels is head `head`'s image size.
+    fn check_size(
+        &self,
+        head: usize,
+        frame: usize,
+        path: &Path,
+        got: (usize, usize),
+    ) -> Result<(), RigError> {
+        let expected = self.head(head)?.image_size_px;
         if got != (expected.0 as usize, expected.1 as usize) {
             return Err(RigError::FrameSize {
                 head,
@@ -198,32 +233,63 @@ impl FolderCamera {
                 got,
             });
         }
+        Ok(())
+    }
+
+    /// Rescales `data`, read from a `file_bits`-deep file, to the declared
+    /// bit depth, if one is declared, refusing values the depth cannot hold.
+    fn rescale(
+        &self,
+        head: usize,
+        frame: usize,
+        path: &Path,
+        file_bits: u8,
+        data: &mut [f32],
+    ) -> Result<(), RigError> {
         let Some(declared) = self.config.bit_depth else {
-            return Ok(loaded.image);
+            return Ok(());
         };
-        let file_max = ((1u32 << loaded.bit_depth) - 1) as f32;
+        let file_max = ((1u32 << file_bits) - 1) as f32;
         let declared_max = ((1u64 << declared.min(32)) - 1) as f32;
-        let max_value = loaded
-            .image
-            .data
+        let max_value = data
             .iter()
             .map(|v| (v * file_max).round() as u32)
             .max()
             .unwrap_or(0);
-        if declared > loaded.bit_depth || max_value as f32 > declared_max {
+        if declared > file_bits || max_value as f32 > declared_max {
             return Err(RigError::FrameBitDepth {
                 head,
                 frame,
                 path: path.to_owned(),
-                file_bits: loaded.bit_depth,
+                file_bits,
                 declared_bits: declared,
                 max_value,
             });
         }
         let scale = file_max / declared_max;
-        let mut image = loaded.image;
-        image.data.iter_mut().for_each(|v| *v *= scale);
-        Ok(image)
+        data.iter_mut().for_each(|v| *v *= scale);
+        Ok(())
+    }
+
+    /// Head `head`'s frames of the armed plan, each read by `read`.
+    fn take_with<T>(
+        &mut self,
+        head: usize,
+        read: fn(&Self, usize, usize, &Path) -> Result<T, RigError>,
+    ) -> Result<Vec<T>, RigError> {
+        self.head(head)?;
+        let expected = self.expected[head];
+        let names = self.wait_for_frames(head, expected)?;
+        let dir = self.head_dir(head)?;
+        let frames = names
+            .iter()
+            .enumerate()
+            .map(|(i, name)| read(self, head, i, &dir.join(name)))
+            .collect::<Result<Vec<_>, _>>()?;
+        // Taken: a second call for the same plan finds nothing new.
+        self.stale[head].extend(frame_files(&dir)?);
+        self.expected[head] = 0;
+        Ok(frames)
     }
 }
 
@@ -250,19 +316,11 @@ impl FrameSource for FolderCamera {
     }
 
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
-        self.head(head)?;
-        let expected = self.expected[head];
-        let names = self.wait_for_frames(head, expected)?;
-        let dir = self.head_dir(head)?;
-        let frames = names
-            .iter()
-            .enumerate()
-            .map(|(i, name)| self.read_frame(head, i, &dir.join(name)))
-            .collect::<Result<Vec<_>, _>>()?;
-        // Taken: a second call for the same plan finds nothing new.
-        self.stale[head].extend(frame_files(&dir)?);
-        self.expected[head] = 0;
-        Ok(frames)
+        self.take_with(head, Self::read_frame)
+    }
+
+    fn take_colour_frames(&mut self, head: usize) -> Result<Vec<[Raster<f32>; 3]>, RigError> {
+        self.take_with(head, Self::read_colour_frame)
     }
 }
 
@@ -342,7 +400,7 @@ fn split_run(s: &str) -> (&str, &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::images::save_gray_png;
+    use crate::io::images::{save_gray_png, ImageError};
 
     fn temp_root(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!(
@@ -394,6 +452,51 @@ mod tests {
         let frames = cam.take_frames(0).unwrap();
         let firsts: Vec<f32> = frames.iter().map(|f| f.data[0]).collect();
         assert_eq!(firsts, [26.0 / 255.0, 51.0 / 255.0, 77.0 / 255.0]);
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn colour_frames_come_as_planes_scaled_to_the_declared_depth_and_grey_ones_are_refused() {
+        let root = temp_root("colour");
+        let mut cam = camera(&root, Some(12));
+        let dir = root.join("A");
+        cam.arm(&[2]).unwrap();
+        for (k, rgb) in [[4095u16, 2048, 0], [0, 1, 4095]].iter().enumerate() {
+            let buf =
+                image::ImageBuffer::<image::Rgb<u16>, _>::from_fn(4, 3, |_, _| image::Rgb(*rgb));
+            buf.save(dir.join(format!("f{k}.png"))).unwrap();
+        }
+        let frames = cam.take_colour_frames(0).unwrap();
+        assert_eq!(frames.len(), 2);
+        assert_eq!(frames[0][0].size(), (4, 3));
+        for (frame, rgb) in frames
+            .iter()
+            .zip([[4095.0, 2048.0, 0.0], [0.0, 1.0, 4095.0]])
+        {
+            for (plane, want) in frame.iter().zip(rgb) {
+                assert!(
+                    (plane.data[0] * 4095.0 - want).abs() < 1e-3,
+                    "{}",
+                    plane.data[0]
+                );
+            }
+        }
+
+        // A grey frame has lost its colours: a typed error, not a guess.
+        cam.arm(&[1]).unwrap();
+        save_gray_png(&dir.join("f2.png"), &frame(0.5), false).unwrap();
+        let err = cam.take_colour_frames(0).unwrap_err();
+        assert!(
+            matches!(
+                &err,
+                RigError::FrameDecode {
+                    frame: 0,
+                    source: ImageError::UnsupportedFormat { .. },
+                    ..
+                }
+            ),
+            "{err}"
+        );
         std::fs::remove_dir_all(&root).unwrap();
     }
 

@@ -82,4 +82,8 @@ impl<S: FrameSource, P: Projector> Camera for HardwareRig<S, P> {
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
         self.cameras.take_frames(head)
     }
+
+    fn take_colour_frames(&mut self, head: usize) -> Result<Vec<[Raster<f32>; 3]>, RigError> {
+        self.cameras.take_colour_frames(head)
+    }
 }

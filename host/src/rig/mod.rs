@@ -20,6 +20,7 @@
 //!   driver uploads them), or DMD controllers driven over USB HID
 //!   ([`dlpc`]: DLPC350, DLPC900).
 
+pub mod bayer;
 pub mod camera_source;
 pub mod dlpc;
 pub mod folder_camera;

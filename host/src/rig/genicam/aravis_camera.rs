@@ -19,7 +19,7 @@ use aravis::{
 };
 
 use super::ledger::{check_arrivals, Arrival, ArrivalStatus};
-use super::pixels::{decode_frame, PixelFormat};
+use super::pixels::{decode_colour_frame, decode_frame, PixelFormat};
 use super::{CameraInfo, GenicamError, GenicamSettings, StreamCounters};
 use crate::raster::Raster;
 use crate::rig::camera_source::FrameSource;
@@ -203,9 +203,26 @@ impl GenicamCamera {
     }
 
     /// The armed plan's frames, one per trigger in trigger order, values
-    /// in [0, 1]: waits up to the frame time-out for each, then briefly
-    /// for a late extra one (a double trigger).
+    /// in [0, 1] (a colour format read as grey: its planes' mean): waits up
+    /// to the frame time-out for each, then briefly for a late extra one (a
+    /// double trigger).
     pub fn take_frames(&mut self) -> Result<Vec<Raster<f32>>, GenicamError> {
+        self.take_decoded(decode_frame)
+    }
+
+    /// The armed plan's frames as [`GenicamCamera::take_frames`] takes
+    /// them, each as its red, green and blue planes; a camera set to a
+    /// monochrome format answers [`super::PixelError::NotColour`].
+    pub fn take_colour_frames(&mut self) -> Result<Vec<[Raster<f32>; 3]>, GenicamError> {
+        self.take_decoded(decode_colour_frame)
+    }
+
+    /// The armed plan's buffers, checked against its triggers, each
+    /// decoded by `decode` (a pixel decoder of [`super::pixels`]).
+    fn take_decoded<T>(
+        &mut self,
+        decode: fn(PixelFormat, u32, u32, &[u8]) -> Result<T, super::PixelError>,
+    ) -> Result<Vec<T>, GenicamError> {
         let start = Instant::now();
         let mut arrivals = Vec::with_capacity(self.expected);
         let mut images = Vec::with_capacity(self.expected);
@@ -255,7 +272,7 @@ impl GenicamCamera {
                         format: format!("0x{code:08x} in frame {index}"),
                         accepted: format!("{} as configured", self.format.name()),
                     })?;
-                decode_frame(format, width.max(0) as u32, height.max(0) as u32, &bytes).map_err(
+                decode(format, width.max(0) as u32, height.max(0) as u32, &bytes).map_err(
                     |source| GenicamError::Pixels {
                         id: self.id.clone(),
                         index,
@@ -441,6 +458,16 @@ impl FrameSource for GenicamCameras {
     fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
         self.head_mut(head)?
             .take_frames()
+            .map_err(|source| RigError::Genicam { head, source })
+    }
+
+    fn take_colour_frames(&mut self, head: usize) -> Result<Vec<[Raster<f32>; 3]>, RigError> {
+        let camera = self.head_mut(head)?;
+        if !camera.pixel_format().is_colour() {
+            return Err(RigError::NotColour { head });
+        }
+        camera
+            .take_colour_frames()
             .map_err(|source| RigError::Genicam { head, source })
     }
 }
