@@ -356,3 +356,54 @@ fn sim_options_say_the_build_has_no_simulator() {
         );
     }
 }
+
+/// `scan --mode high-speed` on hardware refuses, before touching a device
+/// or the output folder, a monochrome camera format and the DLPC drivers
+/// (one exposure per set; the mode needs two), and names what is missing.
+#[test]
+fn high_speed_on_hardware_refuses_what_cannot_work_before_any_device() {
+    let dir = tmp("high-speed-hw");
+    let out = dir.join("out");
+    let base = [
+        "scan",
+        "--mode",
+        "high-speed",
+        "--port",
+        "/dev/slscan-no-such-port",
+        "--calibration",
+        "no-such-rig.json",
+    ];
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_slscan"))
+            .args(base)
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    fails_with(
+        &run(&[
+            "--camera",
+            "genicam:Fake-1",
+            "--camera-pixel-format",
+            "Mono8",
+        ]),
+        "needs colour frames: --camera-pixel-format Mono8 is monochrome",
+    );
+    fails_with(
+        &run(&["--frames-from", "frames", "--projector", "dlpc900"]),
+        "does not drive DLPC controllers yet",
+    );
+    let missing = Command::new(env!("CARGO_BIN_EXE_slscan"))
+        .args(["scan", "--mode", "high-speed", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    fails_with(
+        &missing,
+        "missing: --port, --frames-from or --camera, --calibration",
+    );
+    assert!(!out.exists(), "a refused scan made its output folder");
+    let _ = std::fs::remove_dir_all(&dir);
+}

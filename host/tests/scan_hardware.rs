@@ -30,7 +30,9 @@ use slscan::sim::truth::ground_truth;
 #[path = "support/vendor_tools.rs"]
 mod vendor_tools;
 
-use vendor_tools::{twin, with_vendor_tools, Fault, Folders, CAMERA_PX, HEADS};
+use vendor_tools::{
+    twin, with_vendor_tools, with_vendor_tools_on, Fault, Folders, VendorRig, CAMERA_PX, HEADS,
+};
 
 /// A scan config for the twin's sizes.
 fn config(mode: Mode) -> ScanConfig {
@@ -645,4 +647,84 @@ fn slscan_scan_names_the_missing_hardware_options() {
         stderr.contains("--frames-from or --camera, --calibration") && stderr.contains("--sim"),
         "{stderr}"
     );
+}
+
+/// Seed 001's high-speed mode on a hardware rig of one colour camera: the
+/// 24 binary patterns and the LED flats are written for the DMD GUI with
+/// each pattern's LEDs, the camera software saves each colour long exposure
+/// as a 16-bit RGB PNG, and the scan reads them as R, G, B planes and
+/// decodes 24 instants per frame, measured against the twin's truth at
+/// each instant as on the simulated rig (`high_speed_scan.rs`).
+#[test]
+fn high_speed_mode_runs_on_a_colour_camera_through_the_vendor_tools() {
+    use hil_sim::twin::scenes::{built_in, Detail};
+    use hil_sim::twin::TwinRig;
+    use slscan::scan::high_speed::{run_high_speed, HighSpeedConfig};
+    use slscan::sim::high_speed::{high_speed_sensor, SimHighSpeedConfig};
+    use slscan::sim::truth::{camera_truth_at, spheres_at, twin_calibration};
+    use std::sync::Arc;
+
+    let sim = SimHighSpeedConfig::new("spheres");
+    let detail = Detail {
+        camera: (320, 240),
+        projector: sim.projector_px,
+    };
+    let (scene, rig) = built_in("spheres", &detail).expect("scene");
+    let twin = Arc::new(TwinRig::new(scene, rig).expect("twin"));
+    let calibration = twin_calibration(twin.rig(), 1);
+    let vendor = VendorRig {
+        twin: twin.clone(),
+        heads: 1,
+        sensor: high_speed_sensor(),
+    };
+    let (result, folders) =
+        with_vendor_tools_on(&vendor, "high-speed", Fault::None, |port, folders| {
+            let mut rig = hardware_rig(port, folders, Duration::from_secs(30), &calibration)?;
+            let mut config = HighSpeedConfig::new("hardware");
+            config.frames = 1;
+            let truth_at = |t: f64| {
+                let truth = camera_truth_at(&twin, 0, t).ok()?;
+                Some((truth, spheres_at(twin.scene(), t)))
+            };
+            run_high_speed(
+                &mut rig,
+                &config,
+                &calibration,
+                Some(&truth_at),
+                &mut |_| {},
+            )
+        });
+    let result = result.expect("the high-speed scan runs on the hardware path");
+    // What the DMD GUI was handed: the 24 patterns with their LEDs.
+    let leds: Vec<[f32; 3]> = serde_json::from_slice(
+        &std::fs::read(folders.patterns.join("A").join(LED_FILE)).expect("LED table"),
+    )
+    .expect("LED table reads");
+    assert_eq!(leds.len(), 24);
+    assert_eq!(result.frames.len(), 1);
+    let instants = &result.frames[0].instants;
+    assert_eq!(instants.len(), 24);
+    let mut medians: Vec<f64> = instants
+        .iter()
+        .map(|i| {
+            let t = i.truth.as_ref().expect("measured against the twin");
+            assert!(
+                t.coverage > 0.5,
+                "pattern {}: coverage {}",
+                i.pattern.index,
+                t.coverage
+            );
+            t.depth_median_m
+        })
+        .collect();
+    medians.sort_by(f64::total_cmp);
+    println!(
+        "hardware path, colour PNGs: instants' median depth error {:.0}-{:.0} um (median {:.0})",
+        medians[0] * 1e6,
+        medians[23] * 1e6,
+        medians[12] * 1e6
+    );
+    // The simulated rig's bound for the same scene and size.
+    assert!(medians[12] < 5e-3, "median of medians {} m", medians[12]);
+    let _ = std::fs::remove_dir_all(&folders.root);
 }

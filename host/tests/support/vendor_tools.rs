@@ -15,12 +15,13 @@ use hil_sim::board::{spawn_on_pty, SimBoardConfig, SimBoardHandle};
 use hil_sim::devices::Displayed;
 use hil_sim::faults::FaultPlan;
 use hil_sim::twin::scenes::{built_in, Detail};
-use hil_sim::twin::{Display, Exposure, Pattern, ProjectorTimeline, Shown, TwinRig};
+use hil_sim::twin::{
+    Display, Exposure, Image, Pattern, ProjectorTimeline, SensorModel, Shown, TwinRig,
+};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use slscan::calibration::RigCalibration;
-use slscan::io::images::{load_gray, save_gray_png};
-use slscan::raster::Raster;
+use slscan::io::images::load_gray;
 use slscan::rig::folder_projector::{pattern_file_name, LED_FILE};
 use slscan::scan::ScanConfig;
 use slscan::sim::scan::sim_sensor;
@@ -43,6 +44,25 @@ pub fn twin() -> &'static (Arc<TwinRig>, RigCalibration) {
         let calibration = twin_truth::twin_calibration(twin.rig(), 2);
         (twin, calibration)
     })
+}
+
+/// What the vendor tools render: a twin, how many of its heads, and the
+/// cameras' sensor (a colour sensor's frames are saved as RGB).
+pub struct VendorRig {
+    pub twin: Arc<TwinRig>,
+    pub heads: usize,
+    pub sensor: SensorModel,
+}
+
+impl VendorRig {
+    /// The two-head `large-part` twin of [`twin`], mono cameras.
+    pub fn large_part() -> VendorRig {
+        VendorRig {
+            twin: twin().0.clone(),
+            heads: HEADS.len(),
+            sensor: sim_sensor(),
+        }
+    }
 }
 
 /// What goes wrong: the sync board, or the camera software.
@@ -96,17 +116,21 @@ fn folders(name: &str) -> Folders {
 
 /// The DMD GUI and camera software: until `stop`, saves one frame per
 /// finished exposure of each simulated camera (see the module doc).
-fn play_vendor_tools(board: &SimBoardHandle, folders: &Folders, fault: Fault, stop: &AtomicBool) {
-    let (twin, _) = twin();
-    let sensor = sim_sensor();
+fn play_vendor_tools(
+    rig: &VendorRig,
+    board: &SimBoardHandle,
+    folders: &Folders,
+    fault: Fault,
+    stop: &AtomicBool,
+) {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     // Board clock of the last exposure saved per camera: the clock runs on
     // across plans, so later exposures are new ones.
-    let mut last_start_ns: [Option<u64>; 2] = [None, None];
-    let mut saved = [0usize; 2];
+    let mut last_start_ns: Vec<Option<u64>> = vec![None; rig.heads];
+    let mut saved = vec![0usize; rig.heads];
     let mut dmd = DmdGui::default();
     while !stop.load(Ordering::Relaxed) {
-        for cam in 0..2 {
+        for cam in 0..rig.heads {
             let (exposures, displayed) = {
                 let b = board.board();
                 let heads = b.hardware().heads();
@@ -117,10 +141,10 @@ fn play_vendor_tools(board: &SimBoardHandle, folders: &Folders, fault: Fault, st
                     .filter_map(|e| e.end_ns.map(|end| (e.start_ns, end)))
                     .filter(|&(start, _)| last_start_ns[cam].is_none_or(|last| start > last))
                     .collect();
-                // The board pads its heads to MAX_HEADS; this rig has two.
+                // The board pads its heads to MAX_HEADS.
                 let displayed: Vec<Vec<Displayed>> = heads
                     .iter()
-                    .take(HEADS.len())
+                    .take(rig.heads)
                     .map(|h| h.projector.displayed().to_vec())
                     .collect();
                 (exposures, displayed)
@@ -137,17 +161,15 @@ fn play_vendor_tools(board: &SimBoardHandle, folders: &Folders, fault: Fault, st
                     start_s: start_ns as f64 * 1e-9,
                     end_s: end_ns as f64 * 1e-9,
                 };
-                let (image, _) = twin
-                    .image(cam, &timelines, window, &sensor, &mut rng)
+                let (image, _) = rig
+                    .twin
+                    .image(cam, &timelines, window, &rig.sensor, &mut rng)
                     .expect("twin renders");
-                let frame =
-                    Raster::from_vec(image.width as usize, image.height as usize, image.data)
-                        .expect("mono frame");
                 save_frame(
                     &folders.frames.join(HEADS[cam]),
                     cam,
                     &mut saved[cam],
-                    &frame,
+                    &image,
                     fault,
                 );
                 last_start_ns[cam] = Some(start_ns);
@@ -221,19 +243,51 @@ impl DmdGui {
     }
 }
 
+/// Saves `image` as a 16-bit grey or RGB PNG (by its channels).
+fn save_png(path: &Path, image: &Image) {
+    let samples: Vec<u16> = image
+        .data
+        .iter()
+        .map(|v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16)
+        .collect();
+    let (w, h) = (image.width, image.height);
+    let saved = if image.channels == 3 {
+        image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(w, h, samples)
+            .expect("RGB frame")
+            .save(path)
+    } else {
+        image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, samples)
+            .expect("grey frame")
+            .save(path)
+    };
+    saved.expect("save");
+}
+
+/// Every other pixel of `image` in both directions.
+fn halved(image: &Image) -> Image {
+    let (w, h, c) = (image.width / 2, image.height / 2, image.channels);
+    let data = (0..h)
+        .flat_map(|y| (0..w).flat_map(move |x| (0..c).map(move |k| (x, y, k))))
+        .map(|(x, y, k)| image.at(2 * x, 2 * y, k))
+        .collect();
+    Image {
+        width: w,
+        height: h,
+        channels: c,
+        data,
+    }
+}
+
 /// Saves camera `cam`'s next frame as a 16-bit PNG (temporary + rename),
 /// or gets it wrong as `fault` says.
-fn save_frame(dir: &Path, cam: usize, saved: &mut usize, frame: &Raster<f32>, fault: Fault) {
+fn save_frame(dir: &Path, cam: usize, saved: &mut usize, frame: &Image, fault: Fault) {
     let index = *saved;
     *saved += 1;
     let path = dir.join(format!("frame_{index:05}.png"));
     match fault {
         Fault::Drop { head, index: i } if head == cam && i == index => {}
         Fault::WrongSize { head, index: i } if head == cam && i == index => {
-            let half = Raster::from_fn(frame.width / 2, frame.height / 2, |x, y| {
-                *frame.at(2 * x, 2 * y)
-            });
-            save_gray_png(&path, &half, true).expect("save");
+            save_png(&path, &halved(frame));
         }
         Fault::Corrupt { head, index: i } if head == cam && i == index => {
             let tmp = dir.join(".corrupt.tmp");
@@ -241,21 +295,26 @@ fn save_frame(dir: &Path, cam: usize, saved: &mut usize, frame: &Raster<f32>, fa
             std::fs::rename(&tmp, &path).expect("rename");
         }
         Fault::Extra { head, index: i } if head == cam && i == index => {
-            save_gray_png(&path, frame, true).expect("save");
-            save_gray_png(
-                &dir.join(format!("frame_{index:05}_again.png")),
-                frame,
-                true,
-            )
-            .expect("save");
+            save_png(&path, frame);
+            save_png(&dir.join(format!("frame_{index:05}_again.png")), frame);
         }
-        _ => save_gray_png(&path, frame, true).expect("save"),
+        _ => save_png(&path, frame),
     }
 }
 
 /// Runs `scan` against a fresh simulated board with the vendor tools
 /// playing along (getting `fault` wrong), then stops them.
 pub fn with_vendor_tools<T>(
+    name: &str,
+    fault: Fault,
+    scan: impl FnOnce(&Path, &Folders) -> T,
+) -> (T, Folders) {
+    with_vendor_tools_on(&VendorRig::large_part(), name, fault, scan)
+}
+
+/// [`with_vendor_tools`] on `rig`'s twin, heads and sensor.
+pub fn with_vendor_tools_on<T>(
+    rig: &VendorRig,
     name: &str,
     fault: Fault,
     scan: impl FnOnce(&Path, &Folders) -> T,
@@ -276,7 +335,7 @@ pub fn with_vendor_tools<T>(
     let port = board.path().expect("pty path").to_owned();
     let stop = AtomicBool::new(false);
     let out = std::thread::scope(|s| {
-        let vendor = s.spawn(|| play_vendor_tools(&board, &folders, fault, &stop));
+        let vendor = s.spawn(|| play_vendor_tools(rig, &board, &folders, fault, &stop));
         let out = scan(&port, &folders);
         stop.store(true, Ordering::Relaxed);
         vendor.join().expect("vendor tools ran");

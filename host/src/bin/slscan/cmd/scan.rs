@@ -446,9 +446,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ModeArg::Sequential => Mode::Sequential,
         ModeArg::Simultaneous => Mode::Simultaneous,
         ModeArg::SimultaneousMultiplexed => Mode::SimultaneousMultiplexed,
-        ModeArg::HighSpeed => {
+        ModeArg::HighSpeed if args.sim => {
             return super::scan_high_speed::run(&super::scan_high_speed::Options {
-                sim: args.sim,
                 scene: &args.scene,
                 out: &args.out,
                 camera_px: (args.width, args.height),
@@ -456,6 +455,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 frames: args.frames,
             })
         }
+        ModeArg::HighSpeed => return high_speed_hardware(&args),
     };
     let mut bars = Bars::new();
     let mut on_progress = |p: Progress| bars.on(p);
@@ -489,6 +489,75 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     println!("wrote {}", args.out.join("scan.ply").display());
+    Ok(())
+}
+
+/// `--mode high-speed` on hardware: head A's board, DMD (patterns for the
+/// vendor's GUI) and colour camera, from the rig file.
+fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
+    use slscan::scan::high_speed::{run_high_speed, HighSpeedConfig};
+    use slscan::scan::high_speed_output::{remove_stale, write_high_speed};
+    let missing = missing_hardware_args(args);
+    let (Some(port), Some(calibration_path), true) =
+        (&args.port, &args.calibration, missing.is_empty())
+    else {
+        anyhow::bail!(
+            "no rig given: pass --sim for the simulated rig, or --port, --calibration and \
+             --frames-from or --camera for hardware (missing: {})",
+            missing.join(", ")
+        );
+    };
+    // The DLPC drivers show every pattern of a set for one exposure, but
+    // this mode shows its LED flats for 1.5 ms and its fringes for 200 us.
+    anyhow::ensure!(
+        args.projectors.is_empty(),
+        "--mode high-speed does not drive DLPC controllers yet (--projector): their driver \
+         shows every pattern of a set for one exposure, and this mode needs 1.5 ms LED flats \
+         and 200 us fringes; load the patterns with the DMD vendor's GUI (the default: \
+         --patterns-dir)"
+    );
+    if !args.cameras.is_empty() {
+        let settings = genicam_settings(args)?;
+        anyhow::ensure!(
+            settings.pixel_format.is_colour(),
+            "--mode high-speed needs colour frames: --camera-pixel-format {} is monochrome \
+             (RGB8, BGR8 or a Bayer format such as BayerRG8)",
+            settings.pixel_format.name()
+        );
+    }
+    let calibration = read_rig(calibration_path)
+        .with_context(|| format!("reading the calibration {}", calibration_path.display()))?;
+    let mut config = HighSpeedConfig::new(&format!("rig file {}", calibration_path.display()));
+    config.frames = args.frames;
+    let failed = || {
+        format!(
+            "high-speed scan into {} failed; nothing written",
+            args.out.display()
+        )
+    };
+    // Before any device is touched: a failed scan leaves no earlier outputs.
+    remove_stale(&args.out).with_context(failed)?;
+    let board = SerialBoard::open(port, ClientConfig::default())
+        .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
+    let cameras = frame_source(args, &calibration)?;
+    let projector = FolderProjector::new(
+        args.patterns_dir
+            .clone()
+            .unwrap_or_else(|| args.out.join("dmd_patterns")),
+        FolderProjectorHead::of_rig(&calibration),
+        if args.patterns_preloaded {
+            PatternDelivery::Preloaded
+        } else {
+            PatternDelivery::Write
+        },
+    );
+    let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
+    let mut bars = Bars::new();
+    let result = run_high_speed(&mut rig, &config, &calibration, None, &mut |p| bars.on(p))
+        .with_context(failed)?;
+    let report =
+        write_high_speed(&args.out, &result, config.decoder.depth_range_m).with_context(failed)?;
+    super::scan_high_speed::print_summary(&report, &args.out);
     Ok(())
 }
 

@@ -5,14 +5,13 @@ use std::path::Path;
 
 use slscan::scan::high_speed_output::HighSpeedReport;
 
-/// What `scan --mode high-speed` takes from the command line.
+/// What `scan --sim --mode high-speed` takes from the command line (the
+/// hardware rig's scan is `scan::high_speed_hardware`).
 #[cfg_attr(
     not(feature = "sim"),
-    expect(dead_code, reason = "only the simulated rig runs this mode so far")
+    expect(dead_code, reason = "read by the simulated rig only")
 )]
 pub struct Options<'a> {
-    /// The simulated rig.
-    pub sim: bool,
     /// Twin scene.
     pub scene: &'a str,
     /// Output folder.
@@ -25,14 +24,8 @@ pub struct Options<'a> {
     pub frames: u32,
 }
 
-/// Runs the high-speed scan and prints its summary.
+/// Runs the high-speed scan on the simulated rig and prints its summary.
 pub fn run(options: &Options) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        options.sim,
-        "--mode high-speed runs on the simulated rig only so far (--sim): on hardware it needs a \
-         colour camera backend that delivers R, G, B planes (not built yet; the GenICam backend \
-         gives mono frames)"
-    );
     let report = scan_sim(options)?;
     print_summary(&report, options.out);
     Ok(())
@@ -64,7 +57,8 @@ fn scan_sim(_: &Options) -> anyhow::Result<HighSpeedReport> {
     Err(super::no_simulator("scan --sim --mode high-speed"))
 }
 
-fn print_summary(report: &HighSpeedReport, out: &Path) {
+/// The scan's figures on the console.
+pub fn print_summary(report: &HighSpeedReport, out: &Path) {
     println!(
         "high-speed scan of {}: {} camera frames at {:.0} Hz -> {} instants at {:.0} Hz ({} decoder)",
         report.scene,
