@@ -358,8 +358,8 @@ fn sim_options_say_the_build_has_no_simulator() {
 }
 
 /// `scan --mode high-speed` on hardware refuses, before touching a device
-/// or the output folder, a monochrome camera format and the DLPC drivers
-/// (one exposure per set; the mode needs two), and names what is missing.
+/// or the output folder, a monochrome camera format, and names what is
+/// missing.
 #[test]
 fn high_speed_on_hardware_refuses_what_cannot_work_before_any_device() {
     let dir = tmp("high-speed-hw");
@@ -390,10 +390,6 @@ fn high_speed_on_hardware_refuses_what_cannot_work_before_any_device() {
             "Mono8",
         ]),
         "needs colour frames: --camera-pixel-format Mono8 is monochrome",
-    );
-    fails_with(
-        &run(&["--frames-from", "frames", "--projector", "dlpc900"]),
-        "does not drive DLPC controllers yet",
     );
     let missing = Command::new(env!("CARGO_BIN_EXE_slscan"))
         .args(["scan", "--mode", "high-speed", "--out"])

@@ -94,3 +94,37 @@ fn outputs_are_written_and_a_failed_run_leaves_no_stale_ones() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The 24 patterns and the LED flats through the real DLPC900 driver to
+/// hil-sim's byte-level controller (1-bit pattern table at the fringes'
+/// 200 us): the same scan as straight to the DMD. The DLPC350 cannot show
+/// 1-bit patterns for less than 235 us: refused before any report is sent.
+#[test]
+fn the_dlpc900_driver_carries_the_high_speed_set_and_the_dlpc350_refuses_it() {
+    use slscan::rig::dlpc::Controller;
+    let mut config = config("spheres");
+    config.projector_driver = Some(Controller::Dlpc900);
+    let result = run_sim_high_speed(&config, &mut |_| {}).unwrap();
+    let instants = &result.frames[0].instants;
+    assert_eq!(instants.len(), 24);
+    let mut medians: Vec<f64> = instants
+        .iter()
+        .map(|i| i.truth.as_ref().expect("twin truth").depth_median_m)
+        .collect();
+    medians.sort_by(f64::total_cmp);
+    println!(
+        "through the DLPC900 driver: instants' median depth error {:.0}-{:.0} um (median {:.0})",
+        medians[0] * 1e6,
+        medians[23] * 1e6,
+        medians[12] * 1e6
+    );
+    assert!(medians[12] < 5e-3, "median of medians {} m", medians[12]);
+
+    config.projector_driver = Some(Controller::Dlpc350);
+    let err = run_sim_high_speed(&config, &mut |_| {}).unwrap_err();
+    let chain = format!("{:?}", anyhow::Error::from(err));
+    assert!(
+        chain.contains("exposure 200 us is under the 235 us minimum for 1-bit patterns"),
+        "{chain}"
+    );
+}

@@ -297,6 +297,16 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
     })
 }
 
+/// How long the DMD shows each of the 24 patterns (the plan's shortest
+/// slot), microseconds: the exposure a DMD controller's pattern table must
+/// not exceed. Its LED flats (1.5 ms slots) are then lit this long too, which
+/// dims them but leaves the channel ratios they measure as they are.
+pub fn pattern_display_us() -> u32 {
+    let plan = multiplexed_24_at_5khz(1);
+    let ns = plan.slots.iter().map(|s| s.display_ns).min().unwrap_or(0);
+    ns.div_ceil(1000)
+}
+
 /// Four frames of the 208 Hz camera on the high-speed wiring: a dark one
 /// (pattern 0, no LED) and each LED's white flat (patterns 1, 2, 3), 1.5 ms
 /// each: an LED alone then fills its channel nearly as far as the multiplexed

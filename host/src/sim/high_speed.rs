@@ -12,7 +12,10 @@ use super::rig::{SimRig, SimRigConfig};
 use super::scan::{sim_board_limits, SimScanError};
 use super::truth::{camera_truth_at, spheres_at, twin_calibration};
 use crate::board::ClientConfig;
-use crate::scan::high_speed::{run_high_speed, HighSpeedConfig, HighSpeedResult};
+use crate::rig::dlpc::Controller;
+use crate::scan::high_speed::{
+    pattern_display_us, run_high_speed, HighSpeedConfig, HighSpeedResult,
+};
 use crate::scan::Progress;
 
 /// A simulated high-speed scan.
@@ -30,6 +33,10 @@ pub struct SimHighSpeedConfig {
     pub board: SimBoardConfig,
     /// Timeouts of the board client.
     pub client: ClientConfig,
+    /// The DLPC driver the patterns go through to hil-sim's byte-level
+    /// controller (its pattern table at [`pattern_display_us`]); `None`:
+    /// straight to the simulated DMD.
+    pub projector_driver: Option<Controller>,
 }
 
 impl SimHighSpeedConfig {
@@ -45,6 +52,7 @@ impl SimHighSpeedConfig {
                 attempt_timeout: std::time::Duration::from_secs(2),
                 attempts: 3,
             },
+            projector_driver: None,
         }
     }
 }
@@ -96,6 +104,9 @@ pub fn run_sim_high_speed(
             board_limits: sim_board_limits(None, heads),
         },
     )?;
+    if let Some(controller) = config.projector_driver {
+        sim.drive_projectors_through(controller, pattern_display_us());
+    }
     let truth_at = |t: f64| {
         let truth = camera_truth_at(&twin, 0, t).ok()?;
         Some((truth, spheres_at(twin.scene(), t)))

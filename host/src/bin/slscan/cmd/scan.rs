@@ -453,6 +453,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 camera_px: (args.width, args.height),
                 seed: args.seed,
                 frames: args.frames,
+                projector_driver: args.projector_driver.map(Into::into),
             })
         }
         ModeArg::HighSpeed => return high_speed_hardware(&args),
@@ -492,8 +493,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--mode high-speed` on hardware: head A's board, DMD (patterns for the
-/// vendor's GUI) and colour camera, from the rig file.
+/// `--mode high-speed` on hardware: head A's board, DMD (a DLPC controller,
+/// or patterns for the vendor's GUI) and colour camera, from the rig file.
 fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
     use slscan::scan::high_speed::{run_high_speed, HighSpeedConfig};
     use slscan::scan::high_speed_output::{remove_stale, write_high_speed};
@@ -507,15 +508,6 @@ fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
             missing.join(", ")
         );
     };
-    // The DLPC drivers show every pattern of a set for one exposure, but
-    // this mode shows its LED flats for 1.5 ms and its fringes for 200 us.
-    anyhow::ensure!(
-        args.projectors.is_empty(),
-        "--mode high-speed does not drive DLPC controllers yet (--projector): their driver \
-         shows every pattern of a set for one exposure, and this mode needs 1.5 ms LED flats \
-         and 200 us fringes; load the patterns with the DMD vendor's GUI (the default: \
-         --patterns-dir)"
-    );
     if !args.cameras.is_empty() {
         let settings = genicam_settings(args)?;
         anyhow::ensure!(
@@ -540,21 +532,32 @@ fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
     let board = SerialBoard::open(port, ClientConfig::default())
         .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
     let cameras = frame_source(args, &calibration)?;
-    let projector = FolderProjector::new(
-        args.patterns_dir
-            .clone()
-            .unwrap_or_else(|| args.out.join("dmd_patterns")),
-        FolderProjectorHead::of_rig(&calibration),
-        if args.patterns_preloaded {
-            PatternDelivery::Preloaded
-        } else {
-            PatternDelivery::Write
-        },
-    );
-    let mut rig = HardwareRig::new(board, projector, cameras, calibration.heads.len());
+    let heads = calibration.heads.len();
     let mut bars = Bars::new();
-    let result = run_high_speed(&mut rig, &config, &calibration, None, &mut |p| bars.on(p))
-        .with_context(failed)?;
+    let mut progress = |p| bars.on(p);
+    let result = if args.projectors.is_empty() {
+        let projector = FolderProjector::new(
+            args.patterns_dir
+                .clone()
+                .unwrap_or_else(|| args.out.join("dmd_patterns")),
+            FolderProjectorHead::of_rig(&calibration),
+            if args.patterns_preloaded {
+                PatternDelivery::Preloaded
+            } else {
+                PatternDelivery::Write
+            },
+        );
+        let mut rig = HardwareRig::new(board, projector, cameras, heads);
+        run_high_speed(&mut rig, &config, &calibration, None, &mut progress)
+    } else {
+        // The pattern table at the fringes' 200 us: the flats' longer
+        // slots then show them that long (see `pattern_display_us`).
+        let display_us = slscan::scan::high_speed::pattern_display_us();
+        let projector = dlpc_projectors(&args.projectors, heads, display_us)?;
+        let mut rig = HardwareRig::new(board, projector, cameras, heads);
+        run_high_speed(&mut rig, &config, &calibration, None, &mut progress)
+    }
+    .with_context(failed)?;
     let report =
         write_high_speed(&args.out, &result, config.decoder.depth_range_m).with_context(failed)?;
     super::scan_high_speed::print_summary(&report, &args.out);
@@ -671,7 +674,8 @@ fn scan_hardware(
         let mut rig = HardwareRig::new(board, projector, cameras, heads);
         scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?
     } else {
-        let projector = dlpc_projectors(&args.projectors, heads)?;
+        let exposure_us = (slscan::scan::plan::display_s() * 1e6).round() as u32;
+        let projector = dlpc_projectors(&args.projectors, heads, exposure_us)?;
         let mut rig = HardwareRig::new(board, projector, cameras, heads);
         scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?
     };
@@ -790,11 +794,13 @@ fn parse_projector(spec: &str) -> anyhow::Result<(slscan::rig::dlpc::Controller,
     Ok((controller, serial))
 }
 
-/// The heads' DLPC controllers opened over USB HID.
+/// The heads' DLPC controllers opened over USB HID, each pattern table at
+/// `exposure_us`.
 #[cfg(feature = "hid")]
 fn dlpc_projectors(
     specs: &[String],
     heads: usize,
+    exposure_us: u32,
 ) -> anyhow::Result<slscan::rig::dlpc::DlpcProjector<slscan::rig::dlpc::hid::HidapiLink>> {
     use slscan::rig::dlpc::{hid::HidapiLink, DlpcHead, DlpcProjector, DriverConfig};
     anyhow::ensure!(
@@ -802,7 +808,6 @@ fn dlpc_projectors(
         "{} --projector given for a rig of {heads} heads (one per head, in head order)",
         specs.len()
     );
-    let exposure_us = (slscan::scan::plan::display_s() * 1e6).round() as u32;
     let mut out = Vec::with_capacity(heads);
     for spec in specs {
         let (controller, serial) = parse_projector(spec)?;
@@ -818,7 +823,11 @@ fn dlpc_projectors(
 }
 
 #[cfg(not(feature = "hid"))]
-fn dlpc_projectors(specs: &[String], _heads: usize) -> anyhow::Result<FolderProjector> {
+fn dlpc_projectors(
+    specs: &[String],
+    _heads: usize,
+    _exposure_us: u32,
+) -> anyhow::Result<FolderProjector> {
     for spec in specs {
         parse_projector(spec)?;
     }

@@ -22,6 +22,8 @@ pub struct Options<'a> {
     pub seed: u64,
     /// Camera frames.
     pub frames: u32,
+    /// `--projector-driver`: the DLPC driver and hil-sim's controller.
+    pub projector_driver: Option<slscan::rig::dlpc::Controller>,
 }
 
 /// Runs the high-speed scan on the simulated rig and prints its summary.
@@ -40,6 +42,7 @@ fn scan_sim(options: &Options) -> anyhow::Result<HighSpeedReport> {
     config.camera_px = options.camera_px;
     config.seed = options.seed;
     config.scan.frames = options.frames;
+    config.projector_driver = options.projector_driver;
     let failed = || {
         format!(
             "high-speed scan into {} failed; nothing written",
