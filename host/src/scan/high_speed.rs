@@ -26,7 +26,8 @@ use crate::fit::fit_sphere;
 use crate::highspeed::{crosstalk_from_flats, Decoder, DecoderConfig, PatternSet, SetPattern};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
-use crate::rig::{require_clean, Board, Camera, Led, Projector};
+use crate::reconstruct::{ReconstructConfig, Reconstructor};
+use crate::rig::{require_clean, Board, Camera, Led, Projector, WHITE};
 use protocol::plan::examples::{multiplexed_24_at_5khz, FAST_FRAME_NS};
 use protocol::{HeadSet, PatternSlot, ScanPlan};
 
@@ -154,6 +155,9 @@ pub struct HighSpeedResult {
     pub frames: Vec<FrameResult>,
     /// Whether figures are against the twin's truth calibration.
     pub calibration_is_true: bool,
+    /// The conventional capture of the same motion, when one was run
+    /// ([`run_conventional`]).
+    pub conventional: Option<ConventionalResult>,
 }
 
 /// Minimum points on a sphere for a fit at one instant.
@@ -261,9 +265,9 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
                     data: instant.depth_m,
                 };
                 let cloud = cloud_of(&decoder, &depth_m);
-                let truth = truth_at
-                    .and_then(|t| t(time_s))
-                    .map(|(truth, spheres)| measure_instant(&decoder, &depth_m, &truth, &spheres));
+                let truth = truth_at.and_then(|t| t(time_s)).map(|(truth, spheres)| {
+                    measure_instant(&|i, z| decoder.point(i, z), &depth_m, &truth, &spheres)
+                });
                 InstantResult {
                     frame: f,
                     pattern: instant.pattern,
@@ -294,6 +298,7 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
         camera_rate_hz: 1e9 / f64::from(FAST_FRAME_NS),
         frames,
         calibration_is_true: false,
+        conventional: None,
     })
 }
 
@@ -313,11 +318,17 @@ pub fn pattern_display_us() -> u32 {
 /// exposure's brightest pixels (all eight of its patterns on, 1.6 ms) do, and
 /// its weak leak into the other channels stays well above the 8-bit step.
 pub fn led_flats_plan() -> ScanPlan {
+    short_exposures_plan(4)
+}
+
+/// `count` frames of the 208 Hz camera on the high-speed wiring, each a
+/// 1.6 ms exposure showing pattern `k` for 1.5 ms.
+fn short_exposures_plan(count: u32) -> ScanPlan {
     let base = multiplexed_24_at_5khz(1);
-    let mut plan = ScanPlan::new(&base.heads, 1, 4 * FAST_FRAME_NS, base.margin_ns)
+    let mut plan = ScanPlan::new(&base.heads, 1, count * FAST_FRAME_NS, base.margin_ns)
         .expect("the high-speed wiring is valid");
     let first = base.exposures[0];
-    for k in 0..4u32 {
+    for k in 0..count {
         let slot = PatternSlot {
             pattern_index: k as u16,
             offset_ns: first.start_ns,
@@ -329,9 +340,116 @@ pub fn led_flats_plan() -> ScanPlan {
             1_600_000,
             &[slot],
         )
-        .expect("four short exposures fit four frames");
+        .expect("short exposures fit their frames");
     }
     plan
+}
+
+/// A conventional capture of the same head at the same camera rate, for
+/// comparison: 12 grey fringes (3 periods x 4 steps, white light), one per
+/// 208 Hz frame, decoded into one depth map by the sequential pipeline. A
+/// surface that moves during its 58 ms is smeared; on the twin it is
+/// measured against the truth at the capture's middle.
+#[derive(Clone, Debug)]
+pub struct ConventionalResult {
+    /// Camera frames (12).
+    pub frames: usize,
+    /// From the first pattern's start to the last one's end, seconds.
+    pub duration_s: f64,
+    /// Board-clock time of the middle of the capture, seconds.
+    pub time_s: f64,
+    /// Depth (camera z), metres, NaN where not decoded.
+    pub depth_m: Raster<f32>,
+    /// Figures against the truth at the middle of the capture.
+    pub truth: Option<InstantTruth>,
+}
+
+/// How the conventional capture is decoded.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConventionalConfig {
+    /// Noise of a half-scale grey sample, full-scale units: the fringe-order
+    /// check refuses what this noise could miscount, so it should be the
+    /// camera's own.
+    pub noise_sigma: f32,
+    /// Share of its variance that is shot noise (0..=1).
+    pub shot_noise_share: f32,
+    /// Depths kept (camera z, metres): the high-speed decoder's working
+    /// range, so both captures answer for the same volume.
+    pub depth_range_m: (f64, f64),
+}
+
+/// Runs the conventional capture of [`ConventionalResult`] on head A of
+/// `rig` (after or instead of a high-speed scan).
+pub fn run_conventional<R: Board + Projector + Camera>(
+    rig: &mut R,
+    calibration: &RigCalibration,
+    config: &ConventionalConfig,
+    truth_at: Option<TruthAt<'_>>,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<ConventionalResult, ScanError> {
+    if calibration.heads.len() != 1 {
+        return Err(ScanError::HighSpeedNeedsOneHead {
+            heads: calibration.heads.len(),
+        });
+    }
+    let head = &calibration.heads[0];
+    let dmd = rig.dmd_size_px(0)?;
+    let periods = super::default_periods_px(dmd.0);
+    let mut rc_config = ReconstructConfig::new(periods.clone());
+    rc_config.noise_sigma = config.noise_sigma;
+    rc_config.shot_noise_share = config.shot_noise_share;
+    let failed = |source| ScanError::Reconstruct { head: "A", source };
+    let reconstructor = Reconstructor::from_head(head, rc_config.clone()).map_err(failed)?;
+    let patterns = super::plan::fringe_sequence(dmd, &periods, rc_config.steps);
+    let clock_hz = rig
+        .limits()
+        .map_or(170_000_000.0, |l| f64::from(l.timer_clock_hz));
+    progress(Progress::Stage {
+        name: "conventional capture",
+        total: 1,
+    });
+    rig.load_coloured_sequence(0, &patterns, &vec![WHITE; patterns.len()])?;
+    let plan = short_exposures_plan(patterns.len() as u32);
+    let outcome = rig.run_plan(&plan)?;
+    require_clean(&outcome)?;
+    let frames = rig.take_frames(0)?;
+    progress(Progress::Done);
+    let times = instant_times_s(&plan, outcome.start_tick as f64 / clock_hz);
+    let (first, last) = (times.first().copied(), times.last().copied());
+    let (Some(first), Some(last)) = (first, last) else {
+        return Err(ScanError::FlatFields {
+            head: "A",
+            frames: frames.len(),
+        });
+    };
+    let display_s = 1.5e-3;
+    let time_s = 0.5 * (first + last);
+    let refs: Vec<&Raster<f32>> = frames.iter().collect();
+    let mut depth_m = reconstructor
+        .reconstruct(&refs, None)
+        .map_err(failed)?
+        .depth_m();
+    let (near, far) = config.depth_range_m;
+    for z in &mut depth_m.data {
+        if !(near..=far).contains(&f64::from(*z)) {
+            *z = f32::NAN;
+        }
+    }
+    let rays = head.camera.normalised_grid();
+    let point = |i: usize, z: f32| {
+        let r = rays[i];
+        [r[0] as f32 * z, r[1] as f32 * z, z]
+    };
+    let truth = truth_at
+        .and_then(|t| t(time_s))
+        .map(|(truth, spheres)| measure_instant(&point, &depth_m, &truth, &spheres));
+    Ok(ConventionalResult {
+        frames: frames.len(),
+        duration_s: last - first + display_s,
+        time_s,
+        depth_m,
+        truth,
+    })
 }
 
 /// Board-clock time (s) of the middle of every slot, in display order over
@@ -370,7 +488,7 @@ fn cloud_of(decoder: &Decoder, depth: &Raster<f32>) -> PointCloud {
 /// One instant's depth against the truth at that instant (both in the camera
 /// frame: the truth's points carried by its camera pose).
 fn measure_instant(
-    decoder: &Decoder,
+    point: &dyn Fn(usize, f32) -> [f32; 3],
     depth: &Raster<f32>,
     truth: &CameraTruth,
     spheres: &[TrueSphere],
@@ -408,7 +526,7 @@ fn measure_instant(
                 .iter()
                 .enumerate()
                 .filter(|(i, z)| z.is_finite() && truth.object.get(*i) == Some(&s.object))
-                .map(|(i, &z)| Point3::from(decoder.point(i, z).map(f64::from)))
+                .map(|(i, &z)| Point3::from(point(i, z).map(f64::from)))
                 .collect();
             if points.len() < MIN_SPHERE_POINTS {
                 return None;

@@ -11,7 +11,7 @@ use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, Frame, RgbaImage};
 use serde::Serialize;
 
-use super::high_speed::{HighSpeedResult, InstantSphere};
+use super::high_speed::{HighSpeedResult, InstantSphere, InstantTruth};
 use super::output::OutputError;
 use crate::io::images::{encode_rgb_png, save_bytes};
 use crate::io::outputs::OutputSet;
@@ -58,9 +58,17 @@ pub struct InstantReport {
     pub t_us: f64,
     /// Decoded points.
     pub points: usize,
-    /// Object coverage against the truth at this instant.
+    /// Figures against the truth at this instant (absent without one).
+    #[serde(flatten)]
+    pub truth: TruthReport,
+}
+
+/// A depth map against the truth at its instant.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct TruthReport {
+    /// Object coverage.
     pub coverage: Option<f64>,
-    /// Depth RMSE against the truth at this instant, micrometres.
+    /// Depth RMSE, micrometres.
     pub depth_rmse_um: Option<f64>,
     /// Median absolute depth error, micrometres.
     pub depth_median_um: Option<f64>,
@@ -73,8 +81,45 @@ pub struct InstantReport {
     pub interior_depth_rmse_um: Option<f64>,
     /// Median absolute depth error over the interior, micrometres.
     pub interior_depth_median_um: Option<f64>,
-    /// Spheres fitted at this instant.
+    /// Spheres fitted.
     pub spheres: Vec<SphereReport>,
+}
+
+impl TruthReport {
+    /// The figures of `truth`, all absent without one.
+    fn of(truth: Option<&InstantTruth>) -> Self {
+        let Some(t) = truth else {
+            return Self::default();
+        };
+        TruthReport {
+            coverage: Some(t.coverage),
+            depth_rmse_um: Some(t.depth_rmse_m * 1e6),
+            depth_median_um: Some(t.depth_median_m * 1e6),
+            over_1mm: Some(t.over_1mm),
+            interior_coverage: Some(t.interior.coverage),
+            interior_depth_rmse_um: Some(t.interior.depth_rmse_m * 1e6),
+            interior_depth_median_um: Some(t.interior.depth_median_m * 1e6),
+            spheres: t.spheres.iter().map(sphere_report).collect(),
+        }
+    }
+}
+
+/// The conventional capture beside the high-speed one (see
+/// [`super::high_speed::ConventionalResult`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct ConventionalReport {
+    /// Camera frames (grey fringes, one each).
+    pub frames: usize,
+    /// From its first pattern's start to its last one's end, milliseconds.
+    pub duration_ms: f64,
+    /// Board-clock time of its middle, microseconds since the high-speed
+    /// scan's first instant.
+    pub t_us: f64,
+    /// Decoded points.
+    pub points: usize,
+    /// Figures against the truth at its middle.
+    #[serde(flatten)]
+    pub truth: TruthReport,
 }
 
 /// A sphere fitted at one instant.
@@ -115,6 +160,8 @@ pub struct HighSpeedReport {
     pub calibration_is_true: bool,
     /// Every instant in time order.
     pub instants: Vec<InstantReport>,
+    /// The conventional 12-frame capture of the same motion, when run.
+    pub conventional: Option<ConventionalReport>,
 }
 
 fn sphere_report(s: &InstantSphere) -> SphereReport {
@@ -145,20 +192,16 @@ pub fn report(scan: &HighSpeedResult) -> HighSpeedReport {
             led: LED_NAMES[i.pattern.colour],
             t_us: (i.time_s - t0) * 1e6,
             points: i.cloud.len(),
-            coverage: i.truth.as_ref().map(|t| t.coverage),
-            depth_rmse_um: i.truth.as_ref().map(|t| t.depth_rmse_m * 1e6),
-            depth_median_um: i.truth.as_ref().map(|t| t.depth_median_m * 1e6),
-            over_1mm: i.truth.as_ref().map(|t| t.over_1mm),
-            interior_coverage: i.truth.as_ref().map(|t| t.interior.coverage),
-            interior_depth_rmse_um: i.truth.as_ref().map(|t| t.interior.depth_rmse_m * 1e6),
-            interior_depth_median_um: i.truth.as_ref().map(|t| t.interior.depth_median_m * 1e6),
-            spheres: i
-                .truth
-                .as_ref()
-                .map(|t| t.spheres.iter().map(sphere_report).collect())
-                .unwrap_or_default(),
+            truth: TruthReport::of(i.truth.as_ref()),
         })
         .collect();
+    let conventional = scan.conventional.as_ref().map(|c| ConventionalReport {
+        frames: c.frames,
+        duration_ms: c.duration_s * 1e3,
+        t_us: (c.time_s - t0) * 1e6,
+        points: c.depth_m.data.iter().filter(|z| z.is_finite()).count(),
+        truth: TruthReport::of(c.truth.as_ref()),
+    });
     let m = scan.crosstalk;
     HighSpeedReport {
         mode: "high-speed",
@@ -171,6 +214,7 @@ pub fn report(scan: &HighSpeedResult) -> HighSpeedReport {
         decode_s: scan.frames.iter().map(|f| f.decode_s).collect(),
         calibration_is_true: scan.calibration_is_true,
         instants,
+        conventional,
     }
 }
 

@@ -9,12 +9,13 @@ use hil_sim::twin::scenes::{built_in, Detail};
 use hil_sim::twin::{SensorModel, TwinRig};
 
 use super::rig::{SimRig, SimRigConfig};
-use super::scan::{sim_board_limits, SimScanError};
+use super::scan::{noise_sigma, shot_noise_share, sim_board_limits, SimScanError};
 use super::truth::{camera_truth_at, spheres_at, twin_calibration};
 use crate::board::ClientConfig;
 use crate::rig::dlpc::Controller;
 use crate::scan::high_speed::{
-    pattern_display_us, run_high_speed, HighSpeedConfig, HighSpeedResult,
+    pattern_display_us, run_conventional, run_high_speed, ConventionalConfig, HighSpeedConfig,
+    HighSpeedResult,
 };
 use crate::scan::Progress;
 
@@ -37,6 +38,9 @@ pub struct SimHighSpeedConfig {
     /// controller (its pattern table at [`pattern_display_us`]); `None`:
     /// straight to the simulated DMD.
     pub projector_driver: Option<Controller>,
+    /// Also run the conventional 12-frame capture of the same motion
+    /// ([`run_conventional`]) after the high-speed one.
+    pub conventional: bool,
 }
 
 impl SimHighSpeedConfig {
@@ -53,6 +57,7 @@ impl SimHighSpeedConfig {
                 attempts: 3,
             },
             projector_driver: None,
+            conventional: false,
         }
     }
 }
@@ -65,6 +70,18 @@ pub fn high_speed_sensor() -> SensorModel {
     let mut sensor = SensorModel::colour8();
     sensor.electrons_per_unit = 0.8 * sensor.full_well_e / 1.6e-3;
     sensor
+}
+
+/// The conventional capture's decoding with the noise of
+/// [`high_speed_sensor`]'s frames read as grey (the mean of three channels
+/// with independent noise) and the decoder's default depth range.
+pub fn conventional_config() -> ConventionalConfig {
+    let sensor = high_speed_sensor();
+    ConventionalConfig {
+        noise_sigma: noise_sigma(&sensor) / 3f32.sqrt(),
+        shot_noise_share: shot_noise_share(&sensor),
+        depth_range_m: crate::highspeed::DecoderConfig::default().depth_range_m,
+    }
 }
 
 /// Runs a high-speed scan of `config.scan.scene`'s head A on the simulated
@@ -118,6 +135,19 @@ pub fn run_sim_high_speed(
         Some(&truth_at),
         progress,
     )?;
+    if config.conventional {
+        let conventional = run_conventional(
+            &mut sim,
+            &calibration,
+            &ConventionalConfig {
+                depth_range_m: config.scan.decoder.depth_range_m,
+                ..conventional_config()
+            },
+            Some(&truth_at),
+            progress,
+        )?;
+        result.conventional = Some(conventional);
+    }
     result.calibration_is_true = true;
     Ok(result)
 }

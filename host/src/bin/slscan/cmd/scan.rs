@@ -137,6 +137,11 @@ pub struct Args {
     /// (1 = DMD pattern mode; about 2.2 through a video input).
     #[arg(long, default_value_t = 1.0)]
     sim_projector_gamma: f64,
+    /// --mode high-speed: after it, a conventional capture of the same
+    /// motion at the same camera rate (12 grey fringes, one per frame),
+    /// measured against the truth at its middle (--sim).
+    #[arg(long, requires = "sim")]
+    compare_conventional: bool,
     /// Drive the simulated projectors through this DMD controller's USB HID
     /// driver and hil-sim's byte-level controller (--sim; default: patterns
     /// go straight to the simulated DMDs).
@@ -454,6 +459,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 seed: args.seed,
                 frames: args.frames,
                 projector_driver: args.projector_driver.map(Into::into),
+                conventional: args.compare_conventional,
             })
         }
         ModeArg::HighSpeed => return high_speed_hardware(&args),

@@ -24,6 +24,8 @@ pub struct Options<'a> {
     pub frames: u32,
     /// `--projector-driver`: the DLPC driver and hil-sim's controller.
     pub projector_driver: Option<slscan::rig::dlpc::Controller>,
+    /// `--compare-conventional`: also the 12-frame capture of the same motion.
+    pub conventional: bool,
 }
 
 /// Runs the high-speed scan on the simulated rig and prints its summary.
@@ -43,6 +45,7 @@ fn scan_sim(options: &Options) -> anyhow::Result<HighSpeedReport> {
     config.seed = options.seed;
     config.scan.frames = options.frames;
     config.projector_driver = options.projector_driver;
+    config.conventional = options.conventional;
     let failed = || {
         format!(
             "high-speed scan into {} failed; nothing written",
@@ -79,10 +82,14 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
     let rmse: Vec<f64> = report
         .instants
         .iter()
-        .filter_map(|i| i.depth_rmse_um)
+        .filter_map(|i| i.truth.depth_rmse_um)
         .collect();
     if !rmse.is_empty() {
-        let coverage: Vec<f64> = report.instants.iter().filter_map(|i| i.coverage).collect();
+        let coverage: Vec<f64> = report
+            .instants
+            .iter()
+            .filter_map(|i| i.truth.coverage)
+            .collect();
         let mut sorted = rmse.clone();
         sorted.sort_by(f64::total_cmp);
         println!(
@@ -95,7 +102,7 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
         let mut interior: Vec<f64> = report
             .instants
             .iter()
-            .filter_map(|i| i.interior_depth_rmse_um)
+            .filter_map(|i| i.truth.interior_depth_rmse_um)
             .filter(|r| r.is_finite())
             .collect();
         interior.sort_by(f64::total_cmp);
@@ -103,7 +110,7 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
             let medians: Vec<f64> = report
                 .instants
                 .iter()
-                .filter_map(|i| i.interior_depth_median_um)
+                .filter_map(|i| i.truth.interior_depth_median_um)
                 .collect();
             println!(
                 "  object interiors (>= {} px from another object): depth RMSE median {:.1} um (min {lo:.1}, max {hi:.1}), median error mean {:.1} um",
@@ -115,13 +122,13 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
         for name in report
             .instants
             .iter()
-            .flat_map(|i| i.spheres.iter().map(|s| s.name.clone()))
+            .flat_map(|i| i.truth.spheres.iter().map(|s| s.name.clone()))
             .collect::<std::collections::BTreeSet<_>>()
         {
             let fits: Vec<_> = report
                 .instants
                 .iter()
-                .flat_map(|i| i.spheres.iter().filter(|s| s.name == name))
+                .flat_map(|i| i.truth.spheres.iter().filter(|s| s.name == name))
                 .collect();
             let f = |g: fn(&slscan::scan::high_speed_output::SphereReport) -> f64| {
                 mean(&fits.iter().map(|s| g(s)).collect::<Vec<_>>())
@@ -134,6 +141,19 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
                 f(|s| s.centre_error_um)
             );
         }
+    }
+    if let Some(c) = &report.conventional {
+        let um = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{v:.1} um"));
+        println!(
+            "conventional capture of the same motion ({} frames in {:.1} ms at the same camera rate): coverage {}, depth RMSE {}, median {}, {} of {} points over 1 mm",
+            c.frames,
+            c.duration_ms,
+            c.truth.coverage.map_or("n/a".to_string(), |v| format!("{v:.3}")),
+            um(c.truth.depth_rmse_um),
+            um(c.truth.depth_median_um),
+            c.truth.over_1mm.unwrap_or(0),
+            c.points
+        );
     }
     println!("wrote {}", out.join("high_speed.ply").display());
 }
