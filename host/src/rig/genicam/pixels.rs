@@ -170,6 +170,17 @@ pub enum PixelError {
         /// The format's bits.
         bits: u8,
     },
+    /// A Bayer mosaic one pixel wide or high holds no sample of some colour
+    /// (found by fuzzing: its grey frame came out NaN).
+    #[error("a {format:?} mosaic of {width}x{height} lacks a colour: a Bayer frame needs at least 2x2 pixels")]
+    MosaicTooSmall {
+        /// The format.
+        format: PixelFormat,
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+    },
     /// A colour frame was asked of a monochrome format.
     #[error("{format:?} is a monochrome format; the high-speed mode needs a colour one (RGB8, BGR8 or a Bayer format)")]
     NotColour {
@@ -230,6 +241,13 @@ pub fn decode_colour_frame(
             Ok([plane(r), plane(1), plane(b)])
         }
         PixelFormat::Bayer8(cfa) | PixelFormat::Bayer12(cfa) | PixelFormat::Bayer16(cfa) => {
+            if width < 2 || height < 2 {
+                return Err(PixelError::MosaicTooSmall {
+                    format,
+                    width,
+                    height,
+                });
+            }
             Ok(demosaic_bilinear(&raster(width, height, values), cfa))
         }
         _ => unreachable!("monochrome formats returned above"),
@@ -407,6 +425,22 @@ mod tests {
         for (plane, v) in planes.iter().zip([200.0, 100.0, 50.0]) {
             assert!(plane.data.iter().all(|p| (p * 4095.0 - v).abs() < 1e-3));
         }
+    }
+
+    #[test]
+    fn a_bayer_mosaic_one_pixel_wide_or_high_is_refused_as_grey_and_colour() {
+        let format = PixelFormat::Bayer8(Cfa::Rg);
+        for (w, h) in [(4, 1), (1, 4)] {
+            let bytes = [100u8; 4];
+            for err in [
+                decode_frame(format, w, h, &bytes).unwrap_err(),
+                decode_colour_frame(format, w, h, &bytes).unwrap_err(),
+            ] {
+                assert!(matches!(err, PixelError::MosaicTooSmall { .. }), "{err}");
+            }
+        }
+        let frame = decode_frame(format, 2, 2, &[100u8; 4]).unwrap();
+        assert!(frame.data.iter().all(|v| (0.0..=1.0).contains(v)));
     }
 
     #[test]
