@@ -6,15 +6,19 @@
 //!
 //! ```text
 //! cargo run --release -p slscan --example underwater_dataset -- out/uw-test 24 2
-//! cargo run --release -p slscan --example underwater_eval -- out/uw-test [SAMPLER_STEPS]
+//! cargo run --release -p slscan --example underwater_eval -- out/uw-test [SAMPLER_STEPS] [STRENGTHS]
 //! ```
+//!
+//! `STRENGTHS` (comma-separated, default `0.01,1,4`): the diffusion network
+//! again with seed 002's physics correction after every sampler step at
+//! each strength (0.01 is the seed's), the PSF from each sample's level.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use slscan::io::npy::decode_npy_2d;
 use slscan::raster::Raster;
-use slscan::underwater::learned::LearnedRestorer;
+use slscan::underwater::learned::{LearnedRestorer, PhysicsCorrection};
 use slscan::underwater::score::Score;
 use slscan::underwater::{ClassicalRestorer, RestoreParams, Veil};
 
@@ -25,9 +29,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let data = PathBuf::from(
         args.first()
-            .ok_or("usage: underwater_eval DATA [SAMPLER_STEPS]")?,
+            .ok_or("usage: underwater_eval DATA [SAMPLER_STEPS] [STRENGTHS]")?,
     );
     let sampler_steps: usize = args.get(1).map_or(Ok(4), |s| s.parse())?;
+    let strengths: Vec<f32> = args
+        .get(2)
+        .map_or("0.01,1,4", String::as_str)
+        .split(',')
+        .map(str::parse)
+        .collect::<Result<_, _>>()?;
+    let methods: Vec<String> = METHODS
+        .iter()
+        .map(|m| m.to_string())
+        .chain(
+            strengths
+                .iter()
+                .map(|a| format!("diffusion + physics correction, strength {a}")),
+        )
+        .collect();
     let manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(data.join("manifest.json"))?)?;
     let (w, h) = (
@@ -44,9 +63,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         sampler_steps,
     )?;
     // [level][method]
-    let mut scores = vec![vec![Score::default(); METHODS.len()]; LEVELS.len()];
-    let mut seconds = [0.0f64; METHODS.len()];
-    let mut evaluations = [0usize; METHODS.len()];
+    let mut scores = vec![vec![Score::default(); methods.len()]; LEVELS.len()];
+    let mut seconds = vec![0.0f64; methods.len()];
+    let mut evaluations = vec![0usize; methods.len()];
     let mut sets = 0;
     let samples = manifest["samples"].as_array().ok_or("samples")?;
     for s in samples {
@@ -76,7 +95,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .collect(),
         );
         seconds[1] += t.elapsed().as_secs_f64();
-        for (m, net) in [(2, &onestep), (3, &diffusion)] {
+        let corrected: Vec<LearnedRestorer> = strengths
+            .iter()
+            .map(|&strength| {
+                diffusion.clone().with_physics(Some(PhysicsCorrection {
+                    strength,
+                    ..PhysicsCorrection::seed(sigma)
+                }))
+            })
+            .collect();
+        let nets = [&onestep, &diffusion].into_iter().chain(&corrected);
+        for (m, net) in (2..).zip(nets) {
             let t = Instant::now();
             let (restored, run) = net.restore_set(&refs, sets as u64)?;
             seconds[m] += t.elapsed().as_secs_f64();
@@ -108,7 +137,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let (psnr, ssim, mae) = score.figures();
             println!(
                 "| {} | {n} | {} | {psnr:.2} | {ssim:.3} | {mae:.4} |",
-                LEVELS[l], METHODS[m]
+                LEVELS[l], methods[m]
             );
         }
     }
@@ -120,5 +149,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         1e3 * seconds[3] / sets as f64,
         evaluations[3] / sets.max(1),
     );
+    for (m, a) in (4..).zip(&strengths) {
+        println!(
+            "with the physics correction at strength {a}: {:.0} ms per set",
+            1e3 * seconds[m] / sets as f64
+        );
+    }
     Ok(())
 }

@@ -403,3 +403,34 @@ fn high_speed_on_hardware_refuses_what_cannot_work_before_any_device() {
     assert!(!out.exists(), "a refused scan made its output folder");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--physics-correction` corrects a diffusion restorer's sampler: with the
+/// shipped one-step restorer, or in air, it is refused before any capture
+/// and nothing is written.
+#[cfg(feature = "sim")]
+#[test]
+fn physics_correction_without_a_diffusion_restorer_is_refused_before_capture() {
+    let dir = tmp("physics-correction");
+    let out = dir.join("out");
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_slscan"))
+            .args(["scan", "--sim", "--scene", "spheres"])
+            .args(extra)
+            .args(["--physics-correction", "0.01", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let water = ["--medium", "water", "--turbidity", "T3"];
+    fails_with(
+        &run(&[&water[..], &["--restorer", "learned"]].concat()),
+        "is a one-step network, it has no sampler to correct",
+    );
+    fails_with(
+        &run(&[&water[..], &["--restorer", "classical"]].concat()),
+        "--physics-correction corrects a learned restorer's sampler",
+    );
+    fails_with(&run(&[]), "describe water: add --medium water");
+    assert!(!out.exists(), "a refused scan made its output folder");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -135,3 +135,51 @@ fn a_restorer_model_for_other_fringes_is_refused_before_capture() {
     let err = LearnedRestorer::load(&dealias, &[17.5, 20.0], 4, 1).unwrap_err();
     assert!(matches!(err, LearnedRestoreError::Patterns { .. }), "{err}");
 }
+
+/// The physics correction reaches the diffusion restorer's sampler: with
+/// it the restored set moves towards the observation (a blurred fringe, so
+/// a sharper one is restored differently), without it the sample is the
+/// same as before; a one-step network has no sampler and is left alone.
+#[test]
+fn the_physics_correction_changes_the_diffusion_sample_only() {
+    use slscan::raster::Raster;
+    use slscan::underwater::learned::{LearnedRestorer, PhysicsCorrection};
+    let models = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models");
+    let periods = water_periods_px(1280);
+    let set: Vec<Raster<f32>> = (0..4)
+        .map(|k| {
+            Raster::from_fn(64, 64, |x, _| {
+                let phase = std::f32::consts::TAU * x as f32 / 12.0;
+                0.2 + 0.05 * (phase + k as f32 * std::f32::consts::FRAC_PI_2).cos()
+            })
+        })
+        .collect();
+    let refs: Vec<&Raster<f32>> = set.iter().collect();
+    let physics = Some(PhysicsCorrection {
+        strength: 4.0,
+        ..PhysicsCorrection::seed(1.5)
+    });
+    let diffusion =
+        LearnedRestorer::load(&models.join("underwater_diffusion.onnx"), &periods, 4, 2).unwrap();
+    let (plain, run) = diffusion.restore_set(&refs, 7).unwrap();
+    let corrected = diffusion.clone().with_physics(physics);
+    let (moved, run_corrected) = corrected.restore_set(&refs, 7).unwrap();
+    assert_eq!(
+        run, run_corrected,
+        "the correction adds no network evaluation"
+    );
+    let (again, _) = diffusion.with_physics(None).restore_set(&refs, 7).unwrap();
+    let change = |a: &[Raster<f32>], b: &[Raster<f32>]| {
+        a.iter()
+            .zip(b)
+            .flat_map(|(a, b)| a.data.iter().zip(&b.data).map(|(x, y)| (x - y).abs()))
+            .fold(0.0f32, f32::max)
+    };
+    assert_eq!(change(&plain, &again), 0.0);
+    assert!(change(&plain, &moved) > 1e-4, "{}", change(&plain, &moved));
+    let onestep =
+        LearnedRestorer::load(&models.join("underwater_onestep.onnx"), &periods, 4, 1).unwrap();
+    let (a, _) = onestep.restore_set(&refs, 7).unwrap();
+    let (b, _) = onestep.with_physics(physics).restore_set(&refs, 7).unwrap();
+    assert_eq!(change(&a, &b), 0.0);
+}

@@ -179,16 +179,16 @@ impl Model {
         seed: u64,
     ) -> Result<Vec<f32>, ModelError> {
         if self.is_diffusion() {
-            ddim::sample_tile(
-                self,
-                cond,
-                sampler_steps,
-                seed ^ (k as u64).wrapping_mul(0x9E37_79B9),
-            )
+            ddim::sample_tile(self, cond, sampler_steps, tile_seed(seed, k))
         } else {
             self.run(&[cond])
         }
     }
+}
+
+/// Tile `k`'s sampler seed in a run seeded `seed`.
+pub fn tile_seed(seed: u64, k: usize) -> u64 {
+    seed ^ (k as u64).wrapping_mul(0x9E37_79B9)
 }
 
 /// The metadata file beside `onnx` (`x.onnx` -> `x.json`).

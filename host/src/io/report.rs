@@ -384,6 +384,9 @@ pub struct UnderwaterReport {
     pub frames_restored: usize,
     /// Network evaluations (0 for the classical restorer: no network).
     pub evaluations: usize,
+    /// A diffusion restorer's physics-gradient correction strength after
+    /// every sampler step (null: none).
+    pub physics_correction: Option<f32>,
     /// Wall-clock time of the restoration, milliseconds.
     pub restore_time_ms: f64,
     /// Frame pixels masked by the restorer (NaN, saturated), all frames summed.

@@ -311,6 +311,10 @@ fn underwater_report(w: &super::underwater::RestoreFigures) -> UnderwaterReport 
         sets_restored: w.sets,
         frames_restored: w.frames,
         evaluations: w.evaluations,
+        physics_correction: match &w.water.restorer {
+            super::underwater::Restorer::Learned(net) => net.physics().map(|p| p.strength),
+            _ => None,
+        },
         restore_time_ms: w.time_ms,
         masked_pixels: w.masked_px,
         port_misses: w.port_misses.clone(),

@@ -12,8 +12,10 @@
 
 use std::path::Path;
 
+use crate::calibration::detect::filter::{gaussian_blur, Plane};
+use crate::infer::ddim::sample_tile_corrected;
 use crate::infer::tiles::{infer_tiled, Planes};
-use crate::infer::{Model, ModelError};
+use crate::infer::{tile_seed, Model, ModelError};
 use crate::raster::Raster;
 
 /// `training/underwater/data.py`'s `LEVEL_HALF`: the light level at which
@@ -31,6 +33,78 @@ const TILE_OVERLAP_PX: usize = 16;
 pub struct LearnedRestorer {
     model: Model,
     sampler_steps: usize,
+    physics: Option<PhysicsCorrection>,
+}
+
+/// Seed 002's periodic physics-gradient correction (its Eq. 13): every
+/// `every` sampler steps the state X moves by `-strength * grad_X
+/// ||y - G(X)||_2`, where y is the observed set (the condition's four
+/// frames) and G the simplified degradation in the networks' normalised
+/// units: the forward-scatter blur, then one contrast factor per tile for
+/// attenuation and backscatter (least squares against y, in [0, 1]).
+/// The seed: strength 0.01, every 50 of its 1000 steps; each of our few
+/// DDIM steps spans more than 50 of those, so every step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhysicsCorrection {
+    /// The forward-scatter PSF's standard deviation, camera pixels.
+    pub psf_sigma_px: f64,
+    /// Sampler steps between corrections (1: after every step).
+    pub every: usize,
+    /// The step along the residual norm's gradient (alpha in the seed).
+    pub strength: f32,
+}
+
+impl PhysicsCorrection {
+    /// The seed's setting for a PSF of `psf_sigma_px`.
+    pub fn seed(psf_sigma_px: f64) -> Self {
+        Self {
+            psf_sigma_px,
+            every: 1,
+            strength: 0.01,
+        }
+    }
+
+    /// Corrects the state `x` (four `tile` x `tile` planes) towards the
+    /// observed planes `y` (the same layout).
+    pub fn correct(&self, x: &mut [f32], y: &[f32], tile: usize) {
+        let plane = tile * tile;
+        let blur = |data: &[f32]| {
+            gaussian_blur(
+                &Plane {
+                    width: tile,
+                    height: tile,
+                    data: data.to_vec(),
+                },
+                self.psf_sigma_px,
+            )
+            .data
+        };
+        let hx: Vec<f32> = x.chunks(plane).flat_map(blur).collect();
+        let (dot, norm) = hx.iter().zip(y).fold((0.0f64, 0.0f64), |(d, n), (&h, &o)| {
+            (d + f64::from(h) * f64::from(o), n + f64::from(h).powi(2))
+        });
+        let contrast = if norm > 0.0 {
+            (dot / norm).clamp(0.0, 1.0) as f32
+        } else {
+            0.0
+        };
+        let residual: Vec<f32> = hx.iter().zip(y).map(|(&h, &o)| o - contrast * h).collect();
+        let length = residual
+            .iter()
+            .map(|&r| f64::from(r).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if !(length > 0.0 && length.is_finite()) || contrast == 0.0 {
+            return;
+        }
+        // grad_X ||y - c h*X|| = -c h*(y - c h*X) / ||.||; the Gaussian is symmetric.
+        let gain = self.strength * contrast / length as f32;
+        for (xk, rk) in x.chunks_mut(plane).zip(residual.chunks(plane)) {
+            for (xi, gi) in xk.iter_mut().zip(blur(rk)) {
+                *xi += gain * gi;
+            }
+        }
+    }
 }
 
 /// Why a model does not fit the scan.
@@ -111,7 +185,21 @@ impl LearnedRestorer {
         Ok(Self {
             model,
             sampler_steps,
+            physics: None,
         })
+    }
+
+    /// The same restorer with seed 002's physics correction in its sampler
+    /// (diffusion models only; a one-step network has no sampler, and runs
+    /// as before).
+    pub fn with_physics(mut self, physics: Option<PhysicsCorrection>) -> Self {
+        self.physics = physics;
+        self
+    }
+
+    /// The sampler's physics correction, if any.
+    pub fn physics(&self) -> Option<PhysicsCorrection> {
+        self.physics
     }
 
     /// The loaded model.
@@ -148,7 +236,17 @@ impl LearnedRestorer {
             meta.tile,
             TILE_OVERLAP_PX,
             SET_FRAMES,
-            |k, tile| self.model.predict_tile(tile, k, self.sampler_steps, seed),
+            |k, tile| match self.physics {
+                Some(p) if self.model.is_diffusion() => sample_tile_corrected(
+                    &self.model,
+                    tile,
+                    self.sampler_steps,
+                    tile_seed(seed, k),
+                    p.every,
+                    |x| p.correct(x, &tile[..SET_FRAMES * meta.tile * meta.tile], meta.tile),
+                ),
+                _ => self.model.predict_tile(tile, k, self.sampler_steps, seed),
+            },
         )?;
         let plane = w * h;
         let restored = (0..frames.len().min(SET_FRAMES))
@@ -212,6 +310,65 @@ pub fn restored_frame(x0: f32, scale: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A state that is the clean tile, observed blurred and at half
+    /// contrast, is already consistent: the correction leaves it; a state
+    /// off the observation moves towards it, by `strength` in norm.
+    #[test]
+    fn the_physics_correction_moves_the_state_towards_the_observation() {
+        let tile = 16;
+        let clean: Vec<f32> = (0..4 * tile * tile)
+            .map(|i| ((i % tile) as f32 * 0.7 + (i / (tile * tile)) as f32).sin())
+            .collect();
+        let p = PhysicsCorrection {
+            psf_sigma_px: 1.0,
+            every: 1,
+            strength: 0.5,
+        };
+        let blur = |d: &[f32]| {
+            gaussian_blur(
+                &Plane {
+                    width: tile,
+                    height: tile,
+                    data: d.to_vec(),
+                },
+                1.0,
+            )
+            .data
+        };
+        let y: Vec<f32> = clean
+            .chunks(tile * tile)
+            .flat_map(blur)
+            .map(|v| 0.5 * v)
+            .collect();
+        let mut x = clean.clone();
+        p.correct(&mut x, &y, tile);
+        let moved: f32 = x.iter().zip(&clean).map(|(a, b)| (a - b).abs()).sum();
+        assert!(moved < 1e-3, "{moved}");
+        // Off by a constant: the residual norm falls.
+        let residual = |x: &[f32]| {
+            let hx: Vec<f32> = x.chunks(tile * tile).flat_map(blur).collect();
+            let dot: f32 = hx.iter().zip(&y).map(|(a, b)| a * b).sum();
+            let c = (dot / hx.iter().map(|a| a * a).sum::<f32>()).clamp(0.0, 1.0);
+            hx.iter()
+                .zip(&y)
+                .map(|(a, b)| (b - c * a).powi(2))
+                .sum::<f32>()
+                .sqrt()
+        };
+        let mut x: Vec<f32> = clean.iter().map(|v| v + 0.3 * (v * 3.0).cos()).collect();
+        let before = residual(&x);
+        let start = x.clone();
+        p.correct(&mut x, &y, tile);
+        assert!(residual(&x) < before, "{} -> {before}", residual(&x));
+        let step: f32 = x
+            .iter()
+            .zip(&start)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f32>()
+            .sqrt();
+        assert!(step > 0.0 && step <= 0.5 + 1e-4, "{step}");
+    }
 
     #[test]
     fn the_condition_is_each_frame_over_the_sets_mean_and_the_level() {

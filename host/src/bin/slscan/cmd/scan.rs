@@ -22,6 +22,7 @@ use slscan::scan::underwater::{water_periods_px, Medium, Restorer, Turbidity, Wa
 use slscan::scan::{
     self, dealias_periods_px, default_periods_px, Exposures, Mode, Progress, ScanConfig,
 };
+use slscan::underwater::learned::PhysicsCorrection;
 
 /// Options of `slscan scan`.
 #[derive(clap::Args)]
@@ -217,6 +218,12 @@ pub struct Args {
     /// camera-side water path; required on hardware).
     #[arg(long)]
     water_psf_sigma_px: Option<f64>,
+    /// --medium water, --restorer learned with a diffusion model: seed
+    /// 002's physics-gradient correction after every sampler step at this
+    /// strength (the seed's is 0.01), with the forward-scatter PSF as the
+    /// classical restorer takes it.
+    #[arg(long)]
+    physics_correction: Option<f32>,
 }
 
 /// `--medium` values.
@@ -277,12 +284,21 @@ fn medium_for(
 ) -> anyhow::Result<Medium> {
     let turbidity = args.turbidity.map(Turbidity::from);
     if args.medium == MediumArg::Air {
-        if turbidity.is_some() || args.water_psf_sigma_px.is_some() {
+        if turbidity.is_some()
+            || args.water_psf_sigma_px.is_some()
+            || args.physics_correction.is_some()
+        {
             anyhow::bail!(
-                "--turbidity and --water-psf-sigma-px describe water: add --medium water"
+                "--turbidity, --water-psf-sigma-px and --physics-correction describe water: add --medium water"
             );
         }
         return Ok(Medium::Air);
+    }
+    let psf = args
+        .water_psf_sigma_px
+        .or_else(|| turbidity.and_then(&default_psf_sigma_px));
+    if args.physics_correction.is_some() && !matches!(args.restorer, RestorerArg::Learned) {
+        anyhow::bail!("--physics-correction corrects a learned restorer's sampler: add --restorer learned with a diffusion --restorer-model");
     }
     let restorer = match args.restorer {
         RestorerArg::None => Restorer::None,
@@ -295,18 +311,29 @@ fn medium_for(
                 4,
                 args.sampler_steps,
             )?;
+            let physics = match (args.physics_correction, psf) {
+                (None, _) => None,
+                (Some(_), _) if !net.model().is_diffusion() => anyhow::bail!(
+                    "--physics-correction: {} is a one-step network, it has no sampler to correct; give a diffusion --restorer-model",
+                    path.display()
+                ),
+                (Some(strength), Some(psf_sigma_px)) => Some(PhysicsCorrection {
+                    strength,
+                    ..PhysicsCorrection::seed(psf_sigma_px)
+                }),
+                (Some(_), None) => anyhow::bail!(
+                    "--physics-correction needs the forward-scatter PSF: give --water-psf-sigma-px (camera pixels)"
+                ),
+            };
             tracing::warn!(
                 model = %path.display(),
                 "learned underwater restoration: better fringes than classical on held-out sets, \
                  but in a whole scan its depths are wrong (models/README.md); use --restorer \
                  classical for measurement"
             );
-            Restorer::Learned(std::sync::Arc::new(net))
+            Restorer::Learned(std::sync::Arc::new(net.with_physics(physics)))
         }
     };
-    let psf = args
-        .water_psf_sigma_px
-        .or_else(|| turbidity.and_then(&default_psf_sigma_px));
     let psf_sigma_px = match (&restorer, psf) {
         (_, Some(sigma)) => sigma,
         (Restorer::None | Restorer::Learned(_), None) => 0.0,
