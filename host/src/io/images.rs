@@ -150,6 +150,16 @@ fn load_npy(path: &Path) -> Result<Frame, ImageError> {
     Ok(Frame { image, bit_depth })
 }
 
+/// 8-bit samples in [0, 1].
+fn unit_8(raw: &[u8]) -> Vec<f32> {
+    raw.iter().map(|&v| f32::from(v) / 255.0).collect()
+}
+
+/// 16-bit samples in [0, 1].
+fn unit_16(raw: &[u16]) -> Vec<f32> {
+    raw.iter().map(|&v| f32::from(v) / 65535.0).collect()
+}
+
 /// Loads one frame as f32 in [0, 1]: an 8- or 16-bit grey (or RGB, reduced
 /// to luma) image, or a 2-D `.npy` array.
 pub fn load_gray(path: &Path) -> Result<Frame, ImageError> {
@@ -162,34 +172,14 @@ pub fn load_gray(path: &Path) -> Result<Frame, ImageError> {
     })?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     let (data, bit_depth): (Vec<f32>, u8) = match &img {
-        DynamicImage::ImageLuma8(b) => (
-            b.as_raw().iter().map(|&v| f32::from(v) / 255.0).collect(),
-            8,
-        ),
-        DynamicImage::ImageLuma16(b) => (
-            b.as_raw().iter().map(|&v| f32::from(v) / 65535.0).collect(),
-            16,
-        ),
+        DynamicImage::ImageLuma8(b) => (unit_8(b.as_raw()), 8),
+        DynamicImage::ImageLuma16(b) => (unit_16(b.as_raw()), 16),
         DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) | DynamicImage::ImageLumaA8(_) => {
-            (
-                img.to_luma8()
-                    .as_raw()
-                    .iter()
-                    .map(|&v| f32::from(v) / 255.0)
-                    .collect(),
-                8,
-            )
+            (unit_8(img.to_luma8().as_raw()), 8)
         }
         DynamicImage::ImageRgb16(_)
         | DynamicImage::ImageRgba16(_)
-        | DynamicImage::ImageLumaA16(_) => (
-            img.to_luma16()
-                .as_raw()
-                .iter()
-                .map(|&v| f32::from(v) / 65535.0)
-                .collect(),
-            16,
-        ),
+        | DynamicImage::ImageLumaA16(_) => (unit_16(img.to_luma16().as_raw()), 16),
         other => {
             return Err(ImageError::UnsupportedFormat {
                 path: path.to_owned(),
@@ -226,22 +216,12 @@ pub fn load_colour(path: &Path) -> Result<ColourFrame, ImageError> {
     })?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     let (samples, bit_depth): (Vec<f32>, u8) = match &img {
-        DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) => (
-            img.to_rgb8()
-                .as_raw()
-                .iter()
-                .map(|&v| f32::from(v) / 255.0)
-                .collect(),
-            8,
-        ),
-        DynamicImage::ImageRgb16(_) | DynamicImage::ImageRgba16(_) => (
-            img.to_rgb16()
-                .as_raw()
-                .iter()
-                .map(|&v| f32::from(v) / 65535.0)
-                .collect(),
-            16,
-        ),
+        DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) => {
+            (unit_8(img.to_rgb8().as_raw()), 8)
+        }
+        DynamicImage::ImageRgb16(_) | DynamicImage::ImageRgba16(_) => {
+            (unit_16(img.to_rgb16().as_raw()), 16)
+        }
         other => {
             return Err(ImageError::UnsupportedFormat {
                 path: path.to_owned(),

@@ -569,17 +569,7 @@ fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
     let mut bars = Bars::new();
     let mut progress = |p| bars.on(p);
     let result = if args.projectors.is_empty() {
-        let projector = FolderProjector::new(
-            args.patterns_dir
-                .clone()
-                .unwrap_or_else(|| args.out.join("dmd_patterns")),
-            FolderProjectorHead::of_rig(&calibration),
-            if args.patterns_preloaded {
-                PatternDelivery::Preloaded
-            } else {
-                PatternDelivery::Write
-            },
-        );
+        let projector = folder_projector(args, &calibration);
         let mut rig = HardwareRig::new(board, projector, cameras, heads);
         run_high_speed(&mut rig, &config, &calibration, None, &mut progress)
     } else {
@@ -656,6 +646,22 @@ fn periods_for(args: &Args, mode: Mode, dmd_width_px: u32) -> Vec<f64> {
     }
 }
 
+/// The DMD vendor's GUI as the projector: patterns written to
+/// `--patterns-dir` (default `OUT/dmd_patterns`), or already loaded there.
+fn folder_projector(args: &Args, calibration: &RigCalibration) -> FolderProjector {
+    FolderProjector::new(
+        args.patterns_dir
+            .clone()
+            .unwrap_or_else(|| args.out.join("dmd_patterns")),
+        FolderProjectorHead::of_rig(calibration),
+        if args.patterns_preloaded {
+            PatternDelivery::Preloaded
+        } else {
+            PatternDelivery::Write
+        },
+    )
+}
+
 fn missing_hardware_args(args: &Args) -> Vec<&'static str> {
     [
         ("--port", args.port.is_none()),
@@ -691,19 +697,7 @@ fn scan_hardware(
     let source = format!("rig file {}", calibration_path.display());
     let heads = calibration.heads.len();
     let result = if args.projectors.is_empty() {
-        let patterns_dir = args
-            .patterns_dir
-            .clone()
-            .unwrap_or_else(|| args.out.join("dmd_patterns"));
-        let projector = FolderProjector::new(
-            patterns_dir,
-            FolderProjectorHead::of_rig(&calibration),
-            if args.patterns_preloaded {
-                PatternDelivery::Preloaded
-            } else {
-                PatternDelivery::Write
-            },
-        );
+        let projector = folder_projector(args, &calibration);
         let mut rig = HardwareRig::new(board, projector, cameras, heads);
         scan::run_on_rig(&mut rig, &calibration, &source, None, &config, progress)?
     } else {
