@@ -321,6 +321,9 @@ pub fn led_flats_plan() -> ScanPlan {
     short_exposures_plan(4)
 }
 
+/// How long [`short_exposures_plan`] shows each pattern, nanoseconds.
+const SHORT_DISPLAY_NS: u32 = 1_500_000;
+
 /// `count` frames of the 208 Hz camera on the high-speed wiring, each a
 /// 1.6 ms exposure showing pattern `k` for 1.5 ms.
 fn short_exposures_plan(count: u32) -> ScanPlan {
@@ -332,7 +335,7 @@ fn short_exposures_plan(count: u32) -> ScanPlan {
         let slot = PatternSlot {
             pattern_index: k as u16,
             offset_ns: first.start_ns,
-            display_ns: 1_500_000,
+            display_ns: SHORT_DISPLAY_NS,
         };
         plan.push_exposure(
             HeadSet::A,
@@ -414,15 +417,13 @@ pub fn run_conventional<R: Board + Projector + Camera>(
     require_clean(&outcome)?;
     let frames = rig.take_frames(0)?;
     progress(Progress::Done);
-    let times = instant_times_s(&plan, outcome.start_tick as f64 / clock_hz);
-    let (first, last) = (times.first().copied(), times.last().copied());
-    let (Some(first), Some(last)) = (first, last) else {
-        return Err(ScanError::FlatFields {
-            head: "A",
-            frames: frames.len(),
-        });
-    };
-    let display_s = 1.5e-3;
+    // The plan has one slot per pattern; a camera that sent another number
+    // of frames is refused by the reconstructor's frame count.
+    let start_s = outcome.start_tick as f64 / clock_hz;
+    let times = instant_times_s(&plan, start_s);
+    let first = times.first().copied().unwrap_or(start_s);
+    let last = times.last().copied().unwrap_or(start_s);
+    let display_s = f64::from(SHORT_DISPLAY_NS) * 1e-9;
     let time_s = 0.5 * (first + last);
     let refs: Vec<&Raster<f32>> = frames.iter().collect();
     let mut depth_m = reconstructor

@@ -140,8 +140,10 @@ pub struct Args {
     sim_projector_gamma: f64,
     /// --mode high-speed: after it, a conventional capture of the same
     /// motion at the same camera rate (12 grey fringes, one per frame),
-    /// measured against the truth at its middle (--sim).
-    #[arg(long, requires = "sim")]
+    /// measured against the truth at its middle (--sim; not with
+    /// --projector-driver: a DLPC's pattern table at the fringes' 200 us
+    /// cannot show 8-bit grey fringes).
+    #[arg(long, requires = "sim", conflicts_with = "projector_driver")]
     compare_conventional: bool,
     /// Drive the simulated projectors through this DMD controller's USB HID
     /// driver and hil-sim's byte-level controller (--sim; default: patterns
