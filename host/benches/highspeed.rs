@@ -4,12 +4,17 @@
 //! 2-D FFTs) and the per-pixel unwrapping and depth, at 640x480 and 1280x1024,
 //! beside seed 001's 90 ms on an RTX 4090.
 //!
+//! Then the first stage alone, analytic (crosstalk unmixing, Gaussian low
+//! band) beside ZOCR-Net on tract (`models/highspeed_zocr.onnx`), whose time
+//! replaces the analytic stage's in a decode with `--zocr-model`.
+//!
 //! `cargo bench -p slscan --bench highspeed` (runs: `HIGHSPEED_BENCH_RUNS=5`). A
 //! table, not criterion: each run holds the shared cores for about a second.
 
+use std::path::Path;
 use std::time::{Duration, Instant};
 
-use slscan::highspeed::{Decoder, DecoderConfig, PatternSet};
+use slscan::highspeed::{Decoder, DecoderConfig, PatternSet, ZocrNet};
 use slscan::synth::high_speed::{high_speed_exposure, high_speed_head};
 use slscan::synth::{trace, two_spheres};
 
@@ -68,6 +73,53 @@ fn main() {
             demux.as_secs_f64() * 1e3,
             whole.saturating_sub(demux).as_secs_f64() * 1e3,
             whole.as_secs_f64() * 1e3
+        );
+    }
+    first_stage(runs);
+}
+
+/// The first stage alone: the analytic formula beside ZOCR-Net.
+fn first_stage(runs: usize) {
+    let onnx = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_zocr.onnx");
+    let set = PatternSet::seed001(DMD).expect("seed set");
+    let net = match ZocrNet::load(&onnx, &set) {
+        Ok(net) => net,
+        Err(e) => {
+            println!("\nZOCR-Net row skipped: {e}");
+            return;
+        }
+    };
+    println!("\n| image | stage 1, analytic | stage 1, ZOCR-Net (tiles) | ratio |");
+    println!("|---|---|---|---|");
+    for (w, h) in [(640u32, 480u32), (1280, 1024)] {
+        let head = high_speed_head(w, h, DMD);
+        let truth = trace(&two_spheres(0.5, 0.6), &head.camera, &head.projector);
+        let planes = high_speed_exposure(&set, &truth, 0.002, 3);
+        let decoder = Decoder::new(set.clone(), &head, DecoderConfig::default()).expect("decoder");
+        let channels = [
+            &planes[0].data[..],
+            &planes[1].data[..],
+            &planes[2].data[..],
+        ];
+        let (mut analytic, mut learned) = (Vec::new(), Vec::new());
+        for _ in 0..runs {
+            let t = Instant::now();
+            std::hint::black_box(decoder.demultiplexer().remove_zero_order(channels));
+            analytic.push(t.elapsed());
+            let t = Instant::now();
+            std::hint::black_box(
+                net.remove_zero_order(channels, w as usize, h as usize)
+                    .expect("ZOCR-Net runs"),
+            );
+            learned.push(t.elapsed());
+        }
+        let (a, l) = (median(analytic), median(learned));
+        println!(
+            "| {w}x{h} | {:.0} ms | {:.0} ms ({}) | {:.1}x |",
+            a.as_secs_f64() * 1e3,
+            l.as_secs_f64() * 1e3,
+            net.tiles_per_exposure(w as usize, h as usize),
+            l.as_secs_f64() / a.as_secs_f64()
         );
     }
 }

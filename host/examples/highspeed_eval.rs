@@ -3,117 +3,60 @@
 //! wrapped-phase MAE against the twin's true phase, and for the whole decoder
 //! the share of pixels unwrapped right and the depth error per instant.
 //!
-//! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S]`
+//! With `--zocr models/highspeed_zocr.onnx`, also seed 001's first network
+//! (ZOCR-Net) in place of the analytic crosstalk and zero-order removal:
+//! its own outputs against the twin's noise-free AC and zero order, beside
+//! the formula's, and the whole decoder with it.
+//!
+//! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--zocr PATH]`
 
-use std::sync::Arc;
+use std::path::PathBuf;
 
 use anyhow::Context;
-use hil_sim::twin::random_scene::{random_scene, Placement};
 use hil_sim::twin::scenes::{single_head, Detail};
-use hil_sim::twin::{Exposure, Illum, Image, Pattern, ProjectorTimeline, Renderer};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use slscan::highspeed::{crosstalk_from_flats, Decoder, DecoderConfig, DemuxOptions, PatternSet};
-use slscan::phase::ftp::{ftp_phase, FringeAxis};
-use slscan::raster::Raster;
-
-const SLOT_S: f64 = 200e-6;
-/// The dataset exporter's placement: objects 0.44-0.54 m away, wall at 0.6 m.
-const PLACE: Placement = Placement {
-    x_m: (-0.08, 0.08),
-    y_m: (-0.06, 0.06),
-    z_m: (0.44, 0.54),
-    wall_z_m: 0.6,
+use slscan::highspeed::{
+    crosstalk_from_flats, Decoder, DecoderConfig, DemuxOptions, PatternSet, ZeroOrderRemoved,
+    ZocrNet,
 };
+use slscan::phase::ftp::{ftp_phase, FringeAxis};
+use slscan::sim::high_speed_samples::{random_high_speed_sample, HighSpeedSample};
 
-struct Sample {
-    channels: [Raster<f32>; 3],
-    flats: [[Vec<f32>; 3]; 3],
-    /// Per pattern, true absolute phase (NaN where unlit).
-    phase: Vec<Vec<f32>>,
-    depth_m: Vec<f32>,
+fn detail_size(detail: &Detail) -> (usize, usize) {
+    (detail.camera.0 as usize, detail.camera.1 as usize)
 }
 
-fn planes(image: &Image) -> [Raster<f32>; 3] {
-    let (w, h) = (image.width as usize, image.height as usize);
-    [0, 1, 2].map(|c| Raster {
-        width: w,
-        height: h,
-        data: image.data.chunks(3).map(|p| p[c]).collect(),
-    })
+/// Stage 1's outputs against the twin's noise-free AC and zero order.
+#[derive(Default)]
+struct Stage1 {
+    ac_sq: f64,
+    dc_sq: f64,
+    truth_sq: f64,
+    n: usize,
 }
 
-fn render(set: &PatternSet, detail: &Detail, seed: u64, index: u64) -> anyhow::Result<Sample> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(1_000_003).wrapping_add(index));
-    let scene = random_scene(&mut rng, &PLACE, true)?;
-    let rig = single_head(detail);
-    let (dw, dh) = set.dmd_px();
-    let to_twin = |r: &Raster<f32>| {
-        Arc::new(Pattern {
-            width: dw,
-            height: dh,
-            values: r.data.clone(),
-        })
-    };
-    let items: Vec<_> = set
-        .binary_frames()
-        .iter()
-        .map(to_twin)
-        .zip(set.leds())
-        .collect();
-    let timeline = ProjectorTimeline::sequence(items, 0.0, SLOT_S);
-    let exposure = Exposure {
-        start_s: 0.0,
-        end_s: 24.0 * SLOT_S,
-    };
-    let sensor = slscan::sim::high_speed::high_speed_sensor();
-    let renderer = Renderer::new(&scene, &rig, 0, 0.0)?;
-    let frame = renderer.frame(&[timeline], exposure, &sensor, index + 17)?;
-    let white = to_twin(&Raster::filled(dw as usize, dh as usize, 1.0));
-    // As the scan does: each LED's flat minus a dark frame (the ambient light).
-    let flat = |colour: [f32; 3], noise: u64| {
-        let t = ProjectorTimeline::sequence([(white.clone(), colour)], 0.0, 7.0 * SLOT_S);
-        let e = Exposure {
-            start_s: 0.0,
-            end_s: 7.0 * SLOT_S,
-        };
-        renderer
-            .frame(&[t], e, &sensor, noise)
-            .map(|f| planes(&f.image).map(|p| p.data))
-    };
-    let dark = flat([0.0; 3], index + 99)?;
-    let flats = [0, 1, 2].map(|led| {
-        let mut colour = [0.0f32; 3];
-        colour[led] = 1.0;
-        flat(colour, index + 100 + led as u64).map(|mut planes| {
-            for (plane, d) in planes.iter_mut().zip(&dark) {
-                plane.iter_mut().zip(d).for_each(|(v, d)| *v -= d);
+impl Stage1 {
+    fn add(&mut self, out: &ZeroOrderRemoved, s: &HighSpeedSample) {
+        for c in 0..3 {
+            for i in 0..s.ac[c].len() {
+                self.ac_sq += f64::from(out.fringes[c][i] - s.ac[c][i]).powi(2);
+                self.dc_sq += f64::from(out.zero_order[c][i] - s.dc[c][i]).powi(2);
+                self.truth_sq += f64::from(s.ac[c][i]).powi(2);
+                self.n += 1;
             }
-            planes
-        })
-    });
-    let [f0, f1, f2] = flats;
-    let uv = frame.truth.projector_uv_px(0);
-    let lit = frame.truth.illum(0);
-    let phase = set
-        .patterns()
-        .iter()
-        .map(|p| {
-            uv.iter()
-                .zip(lit)
-                .map(|(q, il)| match il {
-                    Illum::Lit => PatternSet::phase_at(p, f64::from(q[0]), f64::from(q[1])) as f32,
-                    _ => f32::NAN,
-                })
-                .collect()
-        })
-        .collect();
-    Ok(Sample {
-        channels: planes(&frame.image),
-        flats: [f0?, f1?, f2?],
-        phase,
-        depth_m: frame.truth.depth_m().to_vec(),
-    })
+        }
+    }
+    fn rms(&self, sq: f64) -> f64 {
+        (sq / self.n.max(1) as f64).sqrt()
+    }
+    fn ac_rmse(&self) -> f64 {
+        self.rms(self.ac_sq)
+    }
+    fn dc_rmse(&self) -> f64 {
+        self.rms(self.dc_sq)
+    }
+    fn truth_rms(&self) -> f64 {
+        self.rms(self.truth_sq)
+    }
 }
 
 fn wrap(a: f32) -> f32 {
@@ -155,6 +98,12 @@ fn main() -> anyhow::Result<()> {
     };
     let count = arg("--count", 6)?;
     let seed = arg("--seed", 9001)?;
+    let zocr_path = match args.iter().position(|a| a == "--zocr") {
+        Some(i) => Some(PathBuf::from(
+            args.get(i + 1).context("--zocr needs a path")?,
+        )),
+        None => None,
+    };
     let detail = Detail::default();
     let set = PatternSet::seed001(detail.projector)?;
     let calibration = slscan::sim::truth::twin_calibration(&single_head(&detail), 1);
@@ -163,16 +112,19 @@ fn main() -> anyhow::Result<()> {
         "{count} random twin scenes (seed {seed}), {}x{} colour camera (8-bit), {}x{} DMD, 24 x 200 us in one 4.8 ms exposure",
         detail.camera.0, detail.camera.1, detail.projector.0, detail.projector.1
     );
-    let samples: Vec<Sample> = (0..count)
-        .map(|i| render(&set, &detail, seed, i))
-        .collect::<anyhow::Result<_>>()?;
+    let samples: Vec<HighSpeedSample> = (0..count)
+        .map(|i| random_high_speed_sample(&set, &detail, seed, i))
+        .collect::<Result<_, _>>()?;
+    let zocr = zocr_path.map(|p| ZocrNet::load(&p, &set)).transpose()?;
     let flats0 = &samples[0].flats;
     let view = |l: usize| [&flats0[l][0][..], &flats0[l][1][..], &flats0[l][2][..]];
     let crosstalk = crosstalk_from_flats([view(0), view(1), view(2)], 0.995)?;
     println!("crosstalk measured from scene 0's three LED flats (channel <- LED): {crosstalk:.3}");
-    let variants = [
+    // (name, reference carrier, crosstalk, zero-order removal, ZOCR-Net)
+    let mut variants = vec![
         (
             "linear carrier (FTP-like), raw channels",
+            false,
             false,
             false,
             false,
@@ -182,26 +134,78 @@ fn main() -> anyhow::Result<()> {
             false,
             true,
             true,
+            false,
         ),
         (
             "reference carrier, raw channels, zero-order removal",
             true,
             false,
             true,
+            false,
         ),
         (
             "reference carrier + crosstalk, no zero-order removal",
             true,
             true,
             false,
+            false,
         ),
         (
-            "reference carrier + crosstalk + zero-order removal (shipped)",
+            "reference carrier + crosstalk + zero-order removal (analytic)",
             true,
             true,
             true,
+            false,
         ),
     ];
+    if zocr.is_some() {
+        variants.push((
+            "reference carrier after ZOCR-Net (learned stage 1)",
+            true,
+            false,
+            true,
+            true,
+        ));
+    }
+    if let Some(net) = &zocr {
+        let analytic = Decoder::new(
+            set.clone(),
+            head,
+            DecoderConfig {
+                demux: DemuxOptions {
+                    crosstalk: Some(crosstalk),
+                    ..DemuxOptions::default()
+                },
+                ..DecoderConfig::default()
+            },
+        )?;
+        let (w, h) = detail_size(&detail);
+        let mut rows = [Stage1::default(), Stage1::default()];
+        for s in &samples {
+            let planes = [
+                &s.channels[0].data[..],
+                &s.channels[1].data,
+                &s.channels[2].data,
+            ];
+            rows[0].add(&analytic.demultiplexer().remove_zero_order(planes), s);
+            rows[1].add(&net.remove_zero_order(planes, w, h)?, s);
+        }
+        println!(
+            "\nStage 1 against the twin's noise-free fringes and zero order (RMS of the true AC: {:.4} full scale)",
+            rows[0].truth_rms()
+        );
+        println!("\n| zero-order and crosstalk removal | fringe (AC) RMSE | zero-order RMSE |");
+        println!("|---|---|---|");
+        for (name, r) in [
+            "analytic (crosstalk matrix from flats, Gaussian low band)",
+            "ZOCR-Net",
+        ]
+        .iter()
+        .zip(&rows)
+        {
+            println!("| {name} | {:.4} | {:.4} |", r.ac_rmse(), r.dc_rmse());
+        }
+    }
     // Plain row FTP per pattern: each channel as if it held one fringe.
     let mut ftp = Tally::default();
     let probe = Decoder::new(set.clone(), head, DecoderConfig::default())?;
@@ -219,7 +223,7 @@ fn main() -> anyhow::Result<()> {
         "| row FTP per pattern (slscan::phase::ftp) | {:.4} | | | |",
         ftp.mae()
     );
-    for (name, reference, xtalk, zero) in variants {
+    for (name, reference, xtalk, zero, learned) in variants {
         let config = DecoderConfig {
             demux: DemuxOptions {
                 crosstalk: xtalk.then_some(crosstalk),
@@ -229,7 +233,10 @@ fn main() -> anyhow::Result<()> {
             },
             ..DecoderConfig::default()
         };
-        let decoder = Decoder::new(set.clone(), head, config)?;
+        let mut decoder = Decoder::new(set.clone(), head, config)?;
+        if learned {
+            decoder = decoder.with_zocr(zocr.clone().context("no --zocr")?);
+        }
         let mut tally = Tally::default();
         let (mut decoded, mut right, mut lit) = (0usize, 0usize, 0usize);
         let mut depth_sq = 0.0f64;

@@ -1,10 +1,14 @@
 //! The analytic high-speed decoder on a formula-rendered multiplexed exposure
 //! (synth: two calibration spheres before a plane, every pattern at its exact
 //! projector coordinate, Gaussian noise): each of the 24 instants' depth against
-//! the traced truth, and the bad inputs it must refuse.
+//! the traced truth, and the bad inputs it must refuse (exposures, sets, and
+//! ZOCR-Nets that do not fit).
+
+use std::path::{Path, PathBuf};
 
 use slscan::calibration::Head;
-use slscan::highspeed::{Decoder, DecoderConfig, HighSpeedError, PatternSet};
+use slscan::highspeed::zocr::set_periods;
+use slscan::highspeed::{Decoder, DecoderConfig, HighSpeedError, PatternSet, ZocrNet};
 use slscan::raster::Raster;
 use slscan::synth::high_speed::{high_speed_exposure, high_speed_head};
 use slscan::synth::{trace, two_spheres, GroundTruth};
@@ -118,4 +122,59 @@ fn bad_exposures_are_refused_with_what_is_wrong() {
         Decoder::new(set, &head, config),
         Err(HighSpeedError::BadConfig { .. })
     ));
+}
+
+/// `models/NAME.onnx` and its metadata copied into a scratch folder, the
+/// metadata changed by `edit`; returns the copy's ONNX path.
+fn edited_model(name: &str, tag: &str, edit: impl Fn(&mut serde_json::Value)) -> PathBuf {
+    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models");
+    let dir = std::env::temp_dir().join(format!("slscan-zocr-{}-{tag}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let onnx = dir.join("net.onnx");
+    std::fs::copy(models.join(format!("{name}.onnx")), &onnx).unwrap();
+    let mut meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(models.join(format!("{name}.json"))).unwrap())
+            .unwrap();
+    edit(&mut meta);
+    std::fs::write(dir.join("net.json"), meta.to_string()).unwrap();
+    onnx
+}
+
+#[test]
+fn a_zocr_net_that_does_not_fit_the_set_is_refused_at_load() {
+    let set = PatternSet::seed001(DMD).unwrap();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_zocr.onnx");
+    ZocrNet::load(&shipped, &set).expect("the shipped ZOCR-Net fits seed 001's set");
+    // Trained for other periods.
+    let other = edited_model("highspeed_zocr", "periods", |m| {
+        m["periods_px"][0] = serde_json::json!(m["periods_px"][0].as_f64().unwrap() * 1.1);
+    });
+    let err = ZocrNet::load(&other, &set).unwrap_err();
+    assert!(
+        matches!(err, HighSpeedError::BadPatternSet { .. })
+            && err.to_string().contains("trained for pattern periods"),
+        "{err}"
+    );
+    // Another network (the underwater restorer, 5 -> 4 channels) with this
+    // set's periods written into its metadata.
+    let periods = set_periods(&set);
+    let underwater = edited_model("underwater_onestep", "channels", |m| {
+        m["periods_px"] = serde_json::json!(periods);
+        m["steps_per_period"] = serde_json::json!(1);
+    });
+    let err = ZocrNet::load(&underwater, &set).unwrap_err();
+    assert!(
+        matches!(err, HighSpeedError::BadConfig { .. }) && err.to_string().contains("5 -> 4"),
+        "{err}"
+    );
+    // A truncated file.
+    let truncated = edited_model("highspeed_zocr", "truncated", |_| {});
+    let bytes = std::fs::read(&truncated).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    let err = ZocrNet::load(&truncated, &set).unwrap_err();
+    assert!(matches!(err, HighSpeedError::Model(_)), "{err}");
+    assert!(err.to_string().contains("net.onnx"), "{err}");
+    for path in [other, underwater, truncated] {
+        std::fs::remove_dir_all(path.parent().unwrap()).unwrap();
+    }
 }

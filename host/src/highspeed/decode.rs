@@ -16,6 +16,7 @@ use rayon::prelude::*;
 
 use super::demux::{Demultiplexed, Demultiplexer, DemuxOptions};
 use super::set::{PatternSet, SetPattern};
+use super::zocr::ZocrNet;
 use super::HighSpeedError;
 use crate::calibration::{Head, Pose, ProjectorModel};
 use crate::raster::Raster;
@@ -91,6 +92,8 @@ pub struct Decoder {
     /// Per pixel, the undistorted normalised ray (x, y); NaN where undistortion fails.
     rays: Vec<[f64; 2]>,
     demux: Demultiplexer,
+    /// ZOCR-Net in place of the analytic zero-order and crosstalk removal.
+    zocr: Option<ZocrNet>,
     config: DecoderConfig,
 }
 
@@ -146,8 +149,21 @@ impl Decoder {
             height,
             rays,
             demux,
+            zocr: None,
             config,
         })
+    }
+
+    /// The same decoder with ZOCR-Net removing the zero order and the colour
+    /// crosstalk (the demultiplexer's analytic steps 1 and 2 then unused).
+    pub fn with_zocr(mut self, net: ZocrNet) -> Self {
+        self.zocr = Some(net);
+        self
+    }
+
+    /// The ZOCR-Net in use, if any.
+    pub fn zocr(&self) -> Option<&ZocrNet> {
+        self.zocr.as_ref()
     }
 
     /// The same decoder undoing the camera's colour crosstalk `m` (measured
@@ -207,9 +223,12 @@ impl Decoder {
                 limit: self.config.max_saturated_share,
             });
         }
-        let fringes =
-            self.demux
-                .demultiplex([&channels[0].data, &channels[1].data, &channels[2].data]);
+        let planes = [&channels[0].data[..], &channels[1].data, &channels[2].data];
+        let cleaned = match &self.zocr {
+            Some(net) => net.remove_zero_order(planes, self.width, self.height)?,
+            None => self.demux.remove_zero_order(planes),
+        };
+        let fringes = self.demux.demodulate_all(cleaned);
         let p = self.set.patterns().len();
         let w = self.width;
         let rows: Vec<Vec<f32>> = (0..self.height)

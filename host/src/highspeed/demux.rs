@@ -71,6 +71,16 @@ pub struct Demultiplexed {
     pub zero_order: [Vec<f32>; 3],
 }
 
+/// Each LED's light split into its fringes and its zero order (steps 1 and
+/// 2), row-major, LED signal units (what LED `c` alone gives in channel `c`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ZeroOrderRemoved {
+    /// Per LED, the sum of its patterns' `B_m cos(phi_m)`.
+    pub fringes: [Vec<f32>; 3],
+    /// Per LED, `sum_n A_n` (background and ambient light).
+    pub zero_order: [Vec<f32>; 3],
+}
+
 /// The demultiplexer of one head's set at one image size.
 pub struct Demultiplexer {
     fft: Fft2,
@@ -138,6 +148,13 @@ impl Demultiplexer {
     /// Splits one exposure (camera channels R, G, B, row-major, same size as
     /// the demultiplexer) into the patterns' wrapped phases and modulations.
     pub fn demultiplex(&self, channels: [&[f32]; 3]) -> Demultiplexed {
+        self.demodulate_all(self.remove_zero_order(channels))
+    }
+
+    /// Steps 1 and 2, analytically: each LED's light (the crosstalk undone),
+    /// its zero order (the low band), and its fringes without it (or with it,
+    /// when the options keep the zero order). ZOCR-Net's job, done by formula.
+    pub fn remove_zero_order(&self, channels: [&[f32]; 3]) -> ZeroOrderRemoved {
         let leds = unmix(channels, self.options.crosstalk);
         let min_carrier = self
             .windows
@@ -148,7 +165,7 @@ impl Demultiplexer {
             .par_iter()
             .map(|s| self.low_band(s, min_carrier / 4.0))
             .collect();
-        let signals: Vec<Vec<f32>> = if self.options.zero_order_removal {
+        let fringes: Vec<Vec<f32>> = if self.options.zero_order_removal {
             leds.iter()
                 .zip(&zero_order)
                 .map(|(s, z)| s.iter().zip(z).map(|(a, b)| a - b).collect())
@@ -156,15 +173,25 @@ impl Demultiplexer {
         } else {
             leds.to_vec()
         };
+        let [r, g, b]: [Vec<f32>; 3] = zero_order.try_into().expect("three LEDs");
+        let [fr, fg, fb]: [Vec<f32>; 3] = fringes.try_into().expect("three LEDs");
+        ZeroOrderRemoved {
+            fringes: [fr, fg, fb],
+            zero_order: [r, g, b],
+        }
+    }
+
+    /// Step 3: every pattern demodulated out of its LED's fringes, however
+    /// steps 1 and 2 were done (by formula or by ZOCR-Net).
+    pub fn demodulate_all(&self, cleaned: ZeroOrderRemoved) -> Demultiplexed {
         let (wrapped, modulation): (Vec<_>, Vec<_>) = (0..self.windows.len())
             .into_par_iter()
-            .map(|m| self.demodulate(&signals[self.colours[m]], m))
+            .map(|m| self.demodulate(&cleaned.fringes[self.colours[m]], m))
             .unzip();
-        let [r, g, b]: [Vec<f32>; 3] = zero_order.try_into().expect("three LEDs");
         Demultiplexed {
             wrapped,
             modulation,
-            zero_order: [r, g, b],
+            zero_order: cleaned.zero_order,
         }
     }
 

@@ -6,22 +6,25 @@
 //! - [`set`]: the pattern set (frequencies, LEDs, projection order, DMD frames);
 //! - [`demux`]: the analytic multi-carrier demultiplexer (crosstalk and zero-order
 //!   removal, carrier demodulation with windows sized from the carriers);
+//! - [`zocr`]: ZOCR-Net, the seed's first network, in place of the
+//!   demultiplexer's analytic crosstalk and zero-order removal;
 //! - [`decode`]: PDM unwrapping along each pixel's epipolar segment and per-instant
 //!   depth.
 //!
-//! The seed's three networks (zero-order/crosstalk removal, spatial-frequency
-//! decomposition, direction-gated experts) are not built yet: this is the
-//! analytic decoder they are to be measured against.
+//! The seed's other two networks (spatial-frequency decomposition,
+//! direction-gated experts) are not built: carrier demodulation does their job.
 
 pub mod crosstalk;
 pub mod decode;
 pub mod demux;
 pub mod set;
+pub mod zocr;
 
 pub use crosstalk::crosstalk_from_flats;
 pub use decode::{pdm_along, Decoded, Decoder, DecoderConfig, InstantMap};
-pub use demux::{Demultiplexed, Demultiplexer, DemuxOptions, Window};
+pub use demux::{Demultiplexed, Demultiplexer, DemuxOptions, Window, ZeroOrderRemoved};
 pub use set::{PatternSet, SetPattern};
+pub use zocr::ZocrNet;
 
 /// What can go wrong decoding a high-speed exposure.
 #[derive(Debug, thiserror::Error)]
@@ -68,4 +71,7 @@ pub enum HighSpeedError {
     /// The colour crosstalk matrix cannot be inverted.
     #[error("colour crosstalk matrix is singular or not finite")]
     BadCrosstalk,
+    /// The learned stage's network cannot be loaded or run.
+    #[error(transparent)]
+    Model(#[from] crate::infer::ModelError),
 }

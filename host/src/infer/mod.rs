@@ -51,6 +51,16 @@ pub struct ModelMeta {
     pub train_seconds: f64,
     /// Trainable parameters.
     pub parameters: u64,
+    /// What it was trained on, where the metadata says.
+    #[serde(default)]
+    pub data: Option<TrainingData>,
+}
+
+/// The training data a network's metadata records.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+pub struct TrainingData {
+    /// Camera image size of the samples, pixels (width, height).
+    pub size: [usize; 2],
 }
 
 /// Input normalisation of the de-aliasing networks.

@@ -15,6 +15,7 @@
 //! Truth, when the caller has one (the twin), is asked for at each pattern's
 //! instant, so a moving surface is measured where it was when that pattern lit it.
 
+use std::path::PathBuf;
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Matrix3, Point3};
@@ -23,7 +24,9 @@ use super::truth::{CameraTruth, TrueSphere};
 use super::{Progress, ScanError};
 use crate::calibration::RigCalibration;
 use crate::fit::fit_sphere;
-use crate::highspeed::{crosstalk_from_flats, Decoder, DecoderConfig, PatternSet, SetPattern};
+use crate::highspeed::{
+    crosstalk_from_flats, Decoder, DecoderConfig, PatternSet, SetPattern, ZocrNet,
+};
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::reconstruct::{ReconstructConfig, Reconstructor};
@@ -40,15 +43,20 @@ pub struct HighSpeedConfig {
     pub frames: u32,
     /// How each exposure is decoded.
     pub decoder: DecoderConfig,
+    /// ZOCR-Net (seed 001's first network) in place of the analytic
+    /// zero-order and crosstalk removal; checked against the rig's set
+    /// before any capture.
+    pub zocr: Option<ZocrNet>,
 }
 
 impl HighSpeedConfig {
-    /// Three camera frames, the default decoder.
+    /// Three camera frames, the default (analytic) decoder.
     pub fn new(scene: &str) -> Self {
         Self {
             scene: scene.to_string(),
             frames: 3,
             decoder: DecoderConfig::default(),
+            zocr: None,
         }
     }
 }
@@ -158,6 +166,9 @@ pub struct HighSpeedResult {
     /// The conventional capture of the same motion, when one was run
     /// ([`run_conventional`]).
     pub conventional: Option<ConventionalResult>,
+    /// ZOCR-Net's file when it did the decoder's first stage (`None`: the
+    /// analytic zero-order and crosstalk removal).
+    pub zocr_model: Option<PathBuf>,
 }
 
 /// Minimum points on a sphere for a fit at one instant.
@@ -179,7 +190,15 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
     let head = &calibration.heads[0];
     let dmd = rig.dmd_size_px(0)?;
     let set = PatternSet::seed001(dmd)?;
-    let decoder = Decoder::new(set.clone(), head, config.decoder)?;
+    let mut decoder = Decoder::new(set.clone(), head, config.decoder)?;
+    if let Some(net) = &config.zocr {
+        net.check_set(&set)?;
+        let (w, h) = decoder.size();
+        if let Some(warning) = net.size_warning(w, h) {
+            tracing::warn!("{warning}");
+        }
+        decoder = decoder.with_zocr(net.clone());
+    }
     let clock_hz = rig
         .limits()
         .map_or(170_000_000.0, |l| f64::from(l.timer_clock_hz));
@@ -299,6 +318,7 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
         frames,
         calibration_is_true: false,
         conventional: None,
+        zocr_model: decoder.zocr().map(|n| n.path().to_path_buf()),
     })
 }
 

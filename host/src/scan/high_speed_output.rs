@@ -150,8 +150,11 @@ pub struct HighSpeedReport {
     pub camera_rate_hz: f64,
     /// Camera frames.
     pub frames: usize,
-    /// The decoder: "analytic" (the networks of seed 001 are not built).
+    /// The decoder: "analytic", or "ZOCR-Net + analytic demodulation"
+    /// (seed 001's first network; its other two are not built).
     pub decoder: &'static str,
+    /// The first stage's network file, when ZOCR-Net ran.
+    pub zocr_model: Option<String>,
     /// The measured channel <- LED crosstalk, row per camera channel.
     pub crosstalk: [[f64; 3]; 3],
     /// Seconds decoding each frame took.
@@ -209,7 +212,12 @@ pub fn report(scan: &HighSpeedResult) -> HighSpeedReport {
         pattern_rate_hz: scan.pattern_rate_hz,
         camera_rate_hz: scan.camera_rate_hz,
         frames: scan.frames.len(),
-        decoder: "analytic",
+        decoder: if scan.zocr_model.is_some() {
+            "ZOCR-Net + analytic demodulation"
+        } else {
+            "analytic"
+        },
+        zocr_model: scan.zocr_model.as_ref().map(|p| p.display().to_string()),
         crosstalk: [0, 1, 2].map(|r| [0, 1, 2].map(|c| m[(r, c)])),
         decode_s: scan.frames.iter().map(|f| f.decode_s).collect(),
         calibration_is_true: scan.calibration_is_true,

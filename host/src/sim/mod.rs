@@ -20,6 +20,7 @@ pub mod calibration;
 pub mod calibration_source;
 pub mod dlpc;
 pub mod high_speed;
+pub mod high_speed_samples;
 pub mod reference;
 pub mod rig;
 pub mod scan;

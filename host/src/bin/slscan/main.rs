@@ -24,7 +24,8 @@ enum Command {
     /// Reconstruct a point cloud from a folder of fringe images.
     Reconstruct(cmd::reconstruct::Args),
     /// Plan, capture and reconstruct a scan end to end.
-    Scan(cmd::scan::Args),
+    // Boxed: its many options would make every other command's value as large.
+    Scan(Box<cmd::scan::Args>),
     /// List the DMD controllers on the USB bus (feature `hid`).
     Devices(cmd::devices::Args),
     /// Register cloud B onto cloud A (PLY files from any tool) by ICP.
@@ -49,7 +50,7 @@ fn main() -> std::process::ExitCode {
         Command::Calibrate(args) => cmd::calibrate::run(args),
         Command::Calibration(args) => cmd::calibration_io::run(args),
         Command::Reconstruct(args) => cmd::reconstruct::run(args),
-        Command::Scan(args) => cmd::scan::run(args),
+        Command::Scan(args) => cmd::scan::run(*args),
         Command::Devices(args) => cmd::devices::run(args),
         Command::Register(args) => cmd::register::run(args),
         Command::Fuse(args) => cmd::fuse::run(args),

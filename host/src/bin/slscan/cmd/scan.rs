@@ -145,6 +145,12 @@ pub struct Args {
     /// cannot show 8-bit grey fringes).
     #[arg(long, requires = "sim", conflicts_with = "projector_driver")]
     compare_conventional: bool,
+    /// --mode high-speed: seed 001's ZOCR-Net (an ONNX file from
+    /// training/highspeed, such as models/highspeed_zocr.onnx) removes the
+    /// zero order and the colour crosstalk instead of the analytic stage;
+    /// checked against the pattern set before any capture.
+    #[arg(long, value_name = "ONNX")]
+    zocr_model: Option<PathBuf>,
     /// Drive the simulated projectors through this DMD controller's USB HID
     /// driver and hil-sim's byte-level controller (--sim; default: patterns
     /// go straight to the simulated DMDs).
@@ -476,6 +482,10 @@ enum ModeArg {
 
 /// Runs `slscan scan`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.zocr_model.is_none() || matches!(args.mode, ModeArg::HighSpeed),
+        "--zocr-model is seed 001's network for --mode high-speed only"
+    );
     let mode = match args.mode {
         ModeArg::Sequential => Mode::Sequential,
         ModeArg::Simultaneous => Mode::Simultaneous,
@@ -489,6 +499,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 frames: args.frames,
                 projector_driver: args.projector_driver.map(Into::into),
                 conventional: args.compare_conventional,
+                zocr_model: args.zocr_model.as_deref(),
             })
         }
         ModeArg::HighSpeed => return high_speed_hardware(&args),
@@ -564,6 +575,11 @@ fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
     };
     // Before any device is touched: a failed scan leaves no earlier outputs.
     remove_stale(&args.out).with_context(failed)?;
+    if let Some(head) = calibration.heads.first() {
+        let dmd = (head.projector.width_px, head.projector.height_px);
+        config.zocr = super::scan_high_speed::load_zocr(args.zocr_model.as_deref(), dmd)
+            .with_context(failed)?;
+    }
     let board = SerialBoard::open(port, ClientConfig::default())
         .with_context(|| format!("connecting to the sync board on {}", port.display()))?;
     let cameras = frame_source(args, &calibration)?;

@@ -26,6 +26,24 @@ pub struct Options<'a> {
     pub projector_driver: Option<slscan::rig::dlpc::Controller>,
     /// `--compare-conventional`: also the 12-frame capture of the same motion.
     pub conventional: bool,
+    /// `--zocr-model`: ZOCR-Net in place of the analytic first stage.
+    pub zocr_model: Option<&'a Path>,
+}
+
+/// `--zocr-model`, loaded and checked against seed 001's set on a DMD of
+/// `dmd_px` before anything else happens.
+pub fn load_zocr(
+    path: Option<&Path>,
+    dmd_px: (u32, u32),
+) -> anyhow::Result<Option<slscan::highspeed::ZocrNet>> {
+    use anyhow::Context;
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    let set = slscan::highspeed::PatternSet::seed001(dmd_px)?;
+    let net = slscan::highspeed::ZocrNet::load(path, &set)
+        .with_context(|| format!("--zocr-model {}", path.display()))?;
+    Ok(Some(net))
 }
 
 /// Runs the high-speed scan on the simulated rig and prints its summary.
@@ -53,6 +71,7 @@ fn scan_sim(options: &Options) -> anyhow::Result<HighSpeedReport> {
         )
     };
     remove_stale(options.out).with_context(failed)?;
+    config.scan.zocr = load_zocr(options.zocr_model, config.projector_px).with_context(failed)?;
     let mut bars = super::scan::Bars::new();
     let result = run_sim_high_speed(&config, &mut |p| bars.on(p)).with_context(failed)?;
     write_high_speed(options.out, &result, config.scan.decoder.depth_range_m).with_context(failed)

@@ -1,0 +1,138 @@
+//! ZOCR-Net (seed 001's first stage) on tract: the camera's colour long
+//! exposure in, each LED's fringes without the zero order and without the
+//! camera's colour crosstalk out, with the zero order itself, so the
+//! demultiplexer's carrier demodulation ([`super::demux`]) takes over from
+//! there. The learned replacement of [`super::Demultiplexer::remove_zero_order`].
+
+use std::path::Path;
+
+use super::demux::ZeroOrderRemoved;
+use super::set::PatternSet;
+use super::HighSpeedError;
+use crate::infer::tiles::{infer_tiled, Planes};
+use crate::infer::{Model, ModelError};
+
+/// Camera channels in (R, G, B).
+pub const IN_CHANNELS: usize = 3;
+/// Out: per LED the fringes, then per LED the zero order.
+pub const OUT_CHANNELS: usize = 6;
+/// Tiles overlap by this much (the network sees about 33 px).
+const TILE_OVERLAP_PX: usize = 24;
+
+/// A loaded ZOCR-Net.
+#[derive(Clone, Debug)]
+pub struct ZocrNet {
+    model: Model,
+}
+
+impl ZocrNet {
+    /// Loads `onnx` (and its metadata) and checks it was trained for `set`'s
+    /// patterns (their DMD periods, in order) with this channel layout.
+    pub fn load(onnx: &Path, set: &PatternSet) -> Result<Self, HighSpeedError> {
+        let net = Self {
+            model: Model::load(onnx)?,
+        };
+        let m = &net.model.meta;
+        if net.model.is_diffusion()
+            || m.cond_channels != IN_CHANNELS
+            || m.frame_channels != OUT_CHANNELS
+        {
+            return Err(HighSpeedError::BadConfig {
+                why: format!(
+                    "model {} is a {} network with {} -> {} channels; ZOCR-Net is one-step, {IN_CHANNELS} -> {OUT_CHANNELS}",
+                    onnx.display(),
+                    m.kind,
+                    m.cond_channels,
+                    m.frame_channels
+                ),
+            });
+        }
+        net.check_set(set)?;
+        Ok(net)
+    }
+
+    /// Whether the network was trained for `set`'s patterns (their DMD
+    /// periods, in projection order).
+    pub fn check_set(&self, set: &PatternSet) -> Result<(), HighSpeedError> {
+        let periods = set_periods(set);
+        if self.model.trained_for(&periods, 1) {
+            return Ok(());
+        }
+        Err(HighSpeedError::BadPatternSet {
+            why: format!(
+                "model {} was trained for pattern periods {:?} DMD px, this set has {:?}",
+                self.model.path.display(),
+                self.model.meta.periods_px,
+                periods
+            ),
+        })
+    }
+
+    /// A warning when the network was trained on frames of another size
+    /// than `width` x `height`: its fringes' periods in camera pixels, all
+    /// it knows, then differ from what it saw in training.
+    pub fn size_warning(&self, width: usize, height: usize) -> Option<String> {
+        let trained = self.model.meta.data.as_ref()?.size;
+        (trained != [width, height]).then(|| {
+            format!(
+                "ZOCR-Net {} was trained on {}x{} twin frames; this camera's are {width}x{height}, \
+                 so its fringe periods in pixels may lie outside what the network saw",
+                self.model.path.display(),
+                trained[0],
+                trained[1]
+            )
+        })
+    }
+
+    /// The network's file.
+    pub fn path(&self) -> &Path {
+        &self.model.path
+    }
+
+    /// Tiles of `width` x `height` the network runs per exposure.
+    pub fn tiles_per_exposure(&self, width: usize, height: usize) -> usize {
+        let t = self.model.meta.tile;
+        let along = |n| crate::infer::tiles::axis_origins(n, t, TILE_OVERLAP_PX).len();
+        along(width) * along(height)
+    }
+
+    /// One exposure (camera R, G, B, row-major, full scale 1) -> each LED's
+    /// fringes and zero order.
+    pub fn remove_zero_order(
+        &self,
+        channels: [&[f32]; 3],
+        width: usize,
+        height: usize,
+    ) -> Result<ZeroOrderRemoved, ModelError> {
+        let plane = width * height;
+        let data: Vec<f32> = channels.iter().flat_map(|c| c.iter().copied()).collect();
+        let planes = Planes {
+            data: &data,
+            channels: IN_CHANNELS,
+            width,
+            height,
+        };
+        let tiled = infer_tiled(
+            &planes,
+            &vec![true; plane],
+            self.model.meta.tile,
+            TILE_OVERLAP_PX,
+            OUT_CHANNELS,
+            |_, tile| self.model.run(&[tile]),
+        )?;
+        let out = |k: usize| tiled.data[k * plane..(k + 1) * plane].to_vec();
+        Ok(ZeroOrderRemoved {
+            fringes: [out(0), out(1), out(2)],
+            zero_order: [out(3), out(4), out(5)],
+        })
+    }
+}
+
+/// The set's patterns' periods on the DMD, pixels, in projection order
+/// (what a ZOCR-Net's metadata records it was trained for).
+pub fn set_periods(set: &PatternSet) -> Vec<f64> {
+    set.patterns()
+        .iter()
+        .map(|p| 1.0 / p.frequency[0].hypot(p.frequency[1]))
+        .collect()
+}

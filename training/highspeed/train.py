@@ -1,0 +1,115 @@
+"""Trains ZOCR-Net (seed 001's zero-order and colour-crosstalk removal) on
+`highspeed_dataset` folders and exports it for slscan.
+
+    python -m training.highspeed.train --data out/hs-train --kind onestep --profile cpu --out models
+
+The loss is L1 on each LED band's AC (what the demodulator reads) plus a
+quarter of L1 on its zero order (what the decoder's modulation test
+compares against). Writes models/highspeed_zocr.onnx, its metadata (.json)
+and a golden input/output pair (.golden.bin).
+"""
+
+import argparse
+import time
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from .. import common
+from . import data, model
+
+CONFIGS = {
+    "cpu": {"width": 16, "crop": 96, "batch": 16, "steps": 9000, "lr": 2e-3, "minutes": 25, "threads": 2},
+    "gpu": {"width": 24, "crop": 96, "batch": 64, "steps": 20000, "lr": 1e-3, "minutes": 9, "threads": 8},
+}
+
+NAME = "highspeed_zocr"
+DC_WEIGHT = 0.25
+
+
+def loss_terms(pred, target):
+    ac = F.l1_loss(pred[:, :3], target[:, :3])
+    dc = F.l1_loss(pred[:, 3:], target[:, 3:])
+    return ac + DC_WEIGHT * dc, {"ac": ac, "dc": dc}
+
+
+def train(args):
+    if args.kind != "onestep":
+        raise SystemExit("ZOCR-Net is a one-step network (--kind onestep)")
+    cfg = common.profile_config(CONFIGS, args)
+    torch.manual_seed(args.seed)
+    torch.set_num_threads(cfg["threads"])
+    device = "cuda" if args.profile == "gpu" and torch.cuda.is_available() else "cpu"
+    manifest, samples = data.load(args.data)
+    crops = data.Crops(samples, cfg["crop"], args.seed)
+    net = model.ZocrNet(cfg["width"]).to(device)
+    opt = torch.optim.AdamW(net.parameters(), lr=cfg["lr"], weight_decay=0.0)
+    start = time.time()
+    history = []
+    step = 0
+    for step in range(1, cfg["steps"] + 1):
+        cond, target = (t.to(device) for t in crops.batch(cfg["batch"]))
+        loss, terms = loss_terms(net(cond), target)
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+        common.set_lr(opt, cfg, step, start)
+        opt.step()
+        history.append({k: v.item() for k, v in terms.items()} | {"total": loss.item()})
+        if step % 100 == 0:
+            last = {k: np.mean([h[k] for h in history[-100:]]) for k in history[-1]}
+            print(f"step {step} " + " ".join(f"{k} {v:.5f}" for k, v in last.items()) + f" {time.time() - start:.0f}s", flush=True)
+        if time.time() - start > cfg["minutes"] * 60:
+            print(f"time limit at step {step}", flush=True)
+            break
+    elapsed = time.time() - start
+    export(net.cpu().eval(), args, cfg, manifest, step, elapsed, history)
+
+
+def export(net, args, cfg, manifest, steps_done, elapsed, history):
+    path, names, tensors = common.export_onnx(
+        net, args.out, NAME, cfg["crop"], data.IN_CHANNELS, data.OUT_CHANNELS, (0.0, 1.0)
+    )
+    final = {k: float(np.mean([h[k] for h in history[-100:]])) for k in history[-1]}
+    meta = {
+        "network": NAME,
+        "kind": "onestep",
+        "inputs": names,
+        "tile": cfg["crop"],
+        "cond_channels": data.IN_CHANNELS,
+        "frame_channels": data.OUT_CHANNELS,
+        # The camera's frame goes in as it is (full scale 1); s_min is the
+        # smallest zero order the decoder trusts, a share of full scale.
+        "normalisation": {"s_min": 0.002, "doc": data.__doc__.strip()},
+        "schedule": None,
+        "periods_px": manifest["periods_px"],
+        "steps_per_period": 1,
+        "outputs": "per LED band (R, G, B): fringe AC without crosstalk, then zero order",
+        "data": {
+            "kind": manifest["kind"], "seed": manifest["seed"], "count": manifest["count"],
+            "size": [manifest["width"], manifest["height"]], "dmd": manifest["dmd"],
+            "manifest_sha256": data.manifest_hash(args.data),
+        },
+        "losses": {"dc_weight": DC_WEIGHT, "final": final},
+        "profile": args.profile,
+        "config": cfg,
+        "parameters": model.parameter_count(net),
+        "train_steps": steps_done,
+        "train_seconds": round(elapsed, 1),
+        "hardware": common.hardware(args.profile),
+        "seed": args.seed,
+        "golden": common.golden_meta(NAME, tensors),
+    }
+    common.write_meta(args.out, NAME, meta, path)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    common.add_args(ap, "highspeed_dataset folder")
+    ap.add_argument("--profile", choices=list(CONFIGS), default="cpu")
+    train(ap.parse_args())
+
+
+if __name__ == "__main__":
+    main()
