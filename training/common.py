@@ -3,6 +3,7 @@ profile overrides, the learning-rate schedule, and the export (ONNX file,
 golden input/output pair, metadata JSON) that slscan's `infer` module loads
 and its parity test holds tract to."""
 
+import hashlib
 import json
 import os
 import platform
@@ -10,6 +11,51 @@ import time
 
 import numpy as np
 import torch
+
+
+def manifest_hash(folder):
+    """SHA-256 of a dataset folder's manifest.json, recorded in the metadata
+    so a model names the exact data it learnt from."""
+    with open(os.path.join(folder, "manifest.json"), "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def read_manifest(folder, kind):
+    """A dataset folder's manifest.json, refused unless it is of `kind`
+    (compared without case: hil-sim writes "Aliased")."""
+    with open(os.path.join(folder, "manifest.json")) as f:
+        m = json.load(f)
+    if str(m.get("kind", "")).lower() != kind.lower():
+        raise ValueError(f"{folder}: manifest kind {m.get('kind')!r}, expected {kind!r}")
+    return m
+
+
+def data_meta(manifest, folder):
+    """The metadata's `data` block: what slscan's loader and the model card
+    read (kind, seed, count, camera size, the manifest's hash)."""
+    block = {
+        "kind": manifest["kind"], "seed": manifest["seed"], "count": manifest["count"],
+        "size": [manifest["width"], manifest["height"]],
+    }
+    if "dmd" in manifest:
+        block["dmd"] = manifest["dmd"]
+    block["manifest_sha256"] = manifest_hash(folder)
+    return block
+
+
+def run_meta(args, cfg, net, steps_done, elapsed, name, tensors):
+    """The metadata fields every run records: profile, configuration,
+    parameters, steps, time, hardware, seed and the golden pair."""
+    return {
+        "profile": args.profile,
+        "config": cfg,
+        "parameters": sum(p.numel() for p in net.parameters()),
+        "train_steps": steps_done,
+        "train_seconds": round(elapsed, 1),
+        "hardware": hardware(args.profile),
+        "seed": args.seed,
+        "golden": golden_meta(name, tensors),
+    }
 
 
 def add_args(ap, data_help):

@@ -10,27 +10,18 @@ so x0 is the own fringe around zero, in units of the pixel's total light,
 and clean_k = dark + s (x0 + (own - dark) / s) / 2.
 """
 
-import hashlib
-import json
 import os
 
 import numpy as np
 import torch
 
+from .. import common
+
 S_MIN = 0.02
 
 
-def manifest_hash(folder):
-    with open(os.path.join(folder, "manifest.json"), "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
-
-
 def read_manifest(folder):
-    with open(os.path.join(folder, "manifest.json")) as f:
-        m = json.load(f)
-    if str(m.get("kind", "")).lower() != "aliased":
-        raise ValueError(f"{folder}: manifest kind {m.get('kind')!r}, expected 'aliased'")
-    return m
+    return common.read_manifest(folder, "aliased")
 
 
 def normalise(aliased, flats):

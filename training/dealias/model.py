@@ -106,7 +106,3 @@ class UNet(nn.Module):
         d2 = self.dec2(torch.cat([self.up2(F.interpolate(m, scale_factor=2.0, mode="nearest")), e2], 1), emb)
         d1 = self.dec1(torch.cat([self.up1(F.interpolate(d2, scale_factor=2.0, mode="nearest")), e1], 1), emb)
         return self.out(d1)
-
-
-def parameter_count(model):
-    return sum(p.numel() for p in model.parameters())

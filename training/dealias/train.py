@@ -87,22 +87,11 @@ def export(net, args, cfg, manifest, steps_done, elapsed, losses):
         "schedule": sampling.SCHEDULE if net.diffusion else None,
         "periods_px": manifest["samples"][0]["periods_px"],
         "steps_per_period": manifest["samples"][0]["steps"],
-        "data": {
-            "kind": manifest["kind"], "seed": manifest["seed"], "count": manifest["count"],
-            "size": [manifest["width"], manifest["height"]],
-            "manifest_sha256": data.manifest_hash(args.data),
+        "data": common.data_meta(manifest, args.data) | {
             "noise_scales": [min(s["noise_scale"] for s in manifest["samples"]), max(s["noise_scale"] for s in manifest["samples"])],
         },
-        "profile": args.profile,
-        "config": cfg,
-        "parameters": model.parameter_count(net),
-        "train_steps": steps_done,
-        "train_seconds": round(elapsed, 1),
-        "hardware": common.hardware(args.profile),
         "final_loss": float(np.mean(losses[-100:])),
-        "seed": args.seed,
-        "golden": common.golden_meta(name, tensors),
-    }
+    } | common.run_meta(args, cfg, net, steps_done, elapsed, name, tensors)
     common.write_meta(args.out, name, meta, path)
 
 

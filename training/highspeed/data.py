@@ -7,28 +7,19 @@ scan's exposure rule keeps it there), the targets are in the same units, so
 slscan feeds the network the frame as the camera gives it.
 """
 
-import hashlib
-import json
 import os
 
 import numpy as np
 import torch
 
+from .. import common
+
 IN_CHANNELS = 3
 OUT_CHANNELS = 6
 
 
-def manifest_hash(folder):
-    with open(os.path.join(folder, "manifest.json"), "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
-
-
 def read_manifest(folder):
-    with open(os.path.join(folder, "manifest.json")) as f:
-        m = json.load(f)
-    if m.get("kind") != "highspeed-zocr":
-        raise ValueError(f"{folder}: manifest kind {m.get('kind')!r}, expected 'highspeed-zocr'")
-    return m
+    return common.read_manifest(folder, "highspeed-zocr")
 
 
 def load(folder):

@@ -52,7 +52,3 @@ class ZocrNet(nn.Module):
         h = F.silu(self.stem(cond))
         y = self.se(torch.cat([p(h) for p in self.paths], dim=1))
         return self.out(F.silu(self.fuse(y)) + h)
-
-
-def parameter_count(model):
-    return sum(p.numel() for p in model.parameters())

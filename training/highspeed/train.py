@@ -86,21 +86,9 @@ def export(net, args, cfg, manifest, steps_done, elapsed, history):
         "periods_px": manifest["periods_px"],
         "steps_per_period": 1,
         "outputs": "per LED band (R, G, B): fringe AC without crosstalk, then zero order",
-        "data": {
-            "kind": manifest["kind"], "seed": manifest["seed"], "count": manifest["count"],
-            "size": [manifest["width"], manifest["height"]], "dmd": manifest["dmd"],
-            "manifest_sha256": data.manifest_hash(args.data),
-        },
+        "data": common.data_meta(manifest, args.data),
         "losses": {"dc_weight": DC_WEIGHT, "final": final},
-        "profile": args.profile,
-        "config": cfg,
-        "parameters": model.parameter_count(net),
-        "train_steps": steps_done,
-        "train_seconds": round(elapsed, 1),
-        "hardware": common.hardware(args.profile),
-        "seed": args.seed,
-        "golden": common.golden_meta(NAME, tensors),
-    }
+    } | common.run_meta(args, cfg, net, steps_done, elapsed, NAME, tensors)
     common.write_meta(args.out, NAME, meta, path)
 
 

@@ -12,12 +12,12 @@ level), and a restored frame is s (1 + x0_k): the clean fringe's shape at
 the underwater frame's light level.
 """
 
-import hashlib
-import json
 import os
 
 import numpy as np
 import torch
+
+from .. import common
 
 S_MIN = 0.005
 LEVEL_HALF = 0.05
@@ -25,16 +25,8 @@ C_MIN = 0.02
 STEPS = 4
 
 
-def manifest_hash(folder):
-    with open(os.path.join(folder, "manifest.json"), "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
-
-
 def read_manifest(folder):
-    with open(os.path.join(folder, "manifest.json")) as f:
-        m = json.load(f)
-    if m.get("kind") != "underwater-sets":
-        raise ValueError(f"{folder}: manifest kind {m.get('kind')!r}, expected 'underwater-sets'")
+    m = common.read_manifest(folder, "underwater-sets")
     if m.get("steps") != STEPS:
         raise ValueError(f"{folder}: {m.get('steps')} steps, expected {STEPS}")
     return m

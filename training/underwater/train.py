@@ -90,21 +90,9 @@ def export(net, args, cfg, manifest, steps_done, elapsed, history):
         "schedule": sampling.SCHEDULE if net.diffusion else None,
         "periods_px": manifest["periods_px"],
         "steps_per_period": manifest["steps"],
-        "data": {
-            "kind": manifest["kind"], "seed": manifest["seed"], "count": manifest["count"],
-            "size": [manifest["width"], manifest["height"]], "dmd": manifest["dmd"],
-            "manifest_sha256": data.manifest_hash(args.data),
-        },
+        "data": common.data_meta(manifest, args.data),
         "losses": {"weights": losses.WEIGHTS, "final": final},
-        "profile": args.profile,
-        "config": cfg,
-        "parameters": model.parameter_count(net),
-        "train_steps": steps_done,
-        "train_seconds": round(elapsed, 1),
-        "hardware": common.hardware(args.profile),
-        "seed": args.seed,
-        "golden": common.golden_meta(name, tensors),
-    }
+    } | common.run_meta(args, cfg, net, steps_done, elapsed, name, tensors)
     common.write_meta(args.out, name, meta, path)
 
 
