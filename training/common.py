@@ -115,6 +115,36 @@ def export_onnx(net, out, name, tile, cond_channels, frame_channels, cond_range)
     return path, names, tensors
 
 
+def fit(net, opt, cfg, batch_loss):
+    """The training loop every network shares: `batch_loss(step)` gives a
+    batch's loss and its named terms; gradients clipped at 1, the learning
+    rate from `set_lr`, a line every 100 steps, stopping at the profile's
+    steps or minutes. Returns (steps done, seconds, per-step loss history)."""
+    start = time.time()
+    history = []
+    step = 0
+    for step in range(1, cfg["steps"] + 1):
+        loss, terms = batch_loss(step)
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+        set_lr(opt, cfg, step, start)
+        opt.step()
+        history.append({k: v.item() for k, v in terms.items()} | {"total": loss.item()})
+        if step % 100 == 0:
+            last = final_losses(history)
+            print(f"step {step}/{cfg['steps']} " + " ".join(f"{k} {v:.5f}" for k, v in last.items()) + f" {time.time() - start:.0f}s", flush=True)
+        if time.time() - start > cfg["minutes"] * 60:
+            print(f"time limit at step {step}", flush=True)
+            break
+    return step, time.time() - start, history
+
+
+def final_losses(history):
+    """Each loss term's mean over the last 100 steps."""
+    return {k: float(np.mean([h[k] for h in history[-100:]])) for k in history[-1]}
+
+
 def hardware(profile):
     """The machine the training ran on, for the model card."""
     return f"{platform.processor() or platform.machine()}, torch {torch.__version__}, {torch.get_num_threads()} threads" + (

@@ -10,9 +10,7 @@ pair (.golden.json) that slscan's parity test holds tract to.
 """
 
 import argparse
-import time
 
-import numpy as np
 import torch
 
 from .. import common
@@ -43,10 +41,8 @@ def train(args):
     net = model.UNet(diffusion, cfg["width"]).to(device)
     opt = torch.optim.AdamW(net.parameters(), lr=cfg["lr"], weight_decay=1e-4)
     gen = torch.Generator().manual_seed(args.seed)
-    start = time.time()
-    losses = []
-    step = 0
-    for step in range(1, cfg["steps"] + 1):
+
+    def batch_loss(_step):
         cond, x0, w = (t.to(device) for t in crops.batch(cfg["batch"]))
         if diffusion:
             t = torch.rand(x0.shape[0], generator=gen).to(device)
@@ -54,24 +50,13 @@ def train(args):
             pred = net(cond, sampling.noisy(x0, t.cpu(), eps.cpu()).to(device), t)
         else:
             pred = net(cond)
-        loss = loss_fn(pred, x0, w)
-        opt.zero_grad()
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-        common.set_lr(opt, cfg, step, start)
-        opt.step()
-        losses.append(loss.item())
-        if step % 100 == 0:
-            print(f"step {step}/{cfg['steps']} loss {np.mean(losses[-100:]):.5f} {time.time() - start:.0f}s", flush=True)
-        if time.time() - start > cfg["minutes"] * 60:
-            print(f"time limit at step {step}", flush=True)
-            break
-    elapsed = time.time() - start
-    net = net.cpu().eval()
-    export(net, args, cfg, manifest, step, elapsed, losses)
+        return loss_fn(pred, x0, w), {}
+
+    steps_done, elapsed, history = common.fit(net, opt, cfg, batch_loss)
+    export(net.cpu().eval(), args, cfg, manifest, steps_done, elapsed, history)
 
 
-def export(net, args, cfg, manifest, steps_done, elapsed, losses):
+def export(net, args, cfg, manifest, steps_done, elapsed, history):
     name = f"dealias_{args.kind}"
     path, names, tensors = common.export_onnx(
         net, args.out, name, TILE, model.COND_CHANNELS, model.FRAME_CHANNELS, (0.0, 1.0)
@@ -90,7 +75,7 @@ def export(net, args, cfg, manifest, steps_done, elapsed, losses):
         "data": common.data_meta(manifest, args.data) | {
             "noise_scales": [min(s["noise_scale"] for s in manifest["samples"]), max(s["noise_scale"] for s in manifest["samples"])],
         },
-        "final_loss": float(np.mean(losses[-100:])),
+        "final_loss": common.final_losses(history)["total"],
     } | common.run_meta(args, cfg, net, steps_done, elapsed, name, tensors)
     common.write_meta(args.out, name, meta, path)
 

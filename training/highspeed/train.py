@@ -10,9 +10,7 @@ and a golden input/output pair (.golden.bin).
 """
 
 import argparse
-import time
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -45,33 +43,20 @@ def train(args):
     crops = data.Crops(samples, cfg["crop"], args.seed)
     net = model.ZocrNet(cfg["width"]).to(device)
     opt = torch.optim.AdamW(net.parameters(), lr=cfg["lr"], weight_decay=0.0)
-    start = time.time()
-    history = []
-    step = 0
-    for step in range(1, cfg["steps"] + 1):
+
+    def batch_loss(_step):
         cond, target = (t.to(device) for t in crops.batch(cfg["batch"]))
-        loss, terms = loss_terms(net(cond), target)
-        opt.zero_grad()
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-        common.set_lr(opt, cfg, step, start)
-        opt.step()
-        history.append({k: v.item() for k, v in terms.items()} | {"total": loss.item()})
-        if step % 100 == 0:
-            last = {k: np.mean([h[k] for h in history[-100:]]) for k in history[-1]}
-            print(f"step {step} " + " ".join(f"{k} {v:.5f}" for k, v in last.items()) + f" {time.time() - start:.0f}s", flush=True)
-        if time.time() - start > cfg["minutes"] * 60:
-            print(f"time limit at step {step}", flush=True)
-            break
-    elapsed = time.time() - start
-    export(net.cpu().eval(), args, cfg, manifest, step, elapsed, history)
+        return loss_terms(net(cond), target)
+
+    steps_done, elapsed, history = common.fit(net, opt, cfg, batch_loss)
+    export(net.cpu().eval(), args, cfg, manifest, steps_done, elapsed, history)
 
 
 def export(net, args, cfg, manifest, steps_done, elapsed, history):
     path, names, tensors = common.export_onnx(
         net, args.out, NAME, cfg["crop"], data.IN_CHANNELS, data.OUT_CHANNELS, (0.0, 1.0)
     )
-    final = {k: float(np.mean([h[k] for h in history[-100:]])) for k in history[-1]}
+    final = common.final_losses(history)
     meta = {
         "network": NAME,
         "kind": "onestep",

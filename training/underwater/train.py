@@ -14,9 +14,7 @@ metadata (.json) and a golden input/output pair (.golden.bin).
 """
 
 import argparse
-import time
 
-import numpy as np
 import torch
 
 from .. import common
@@ -45,10 +43,8 @@ def train(args):
     net = model.UNet(diffusion, cfg["width"], COND_CHANNELS, FRAME_CHANNELS).to(device)
     opt = torch.optim.AdamW(net.parameters(), lr=cfg["lr"], weight_decay=0.0)
     gen = torch.Generator().manual_seed(args.seed)
-    start = time.time()
-    history = []
-    step = 0
-    for step in range(1, cfg["steps"] + 1):
+
+    def batch_loss(_step):
         cond, x0, sigma = (t.to(device) for t in crops.batch(cfg["batch"]))
         if diffusion:
             t = torch.rand(x0.shape[0], generator=gen).to(device)
@@ -56,21 +52,10 @@ def train(args):
             pred = net(cond, sampling.noisy(x0, t.cpu(), eps.cpu()).to(device), t)
         else:
             pred = net(cond)
-        loss, terms = losses.total(pred, x0, sigma, net)
-        opt.zero_grad()
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-        common.set_lr(opt, cfg, step, start)
-        opt.step()
-        history.append({k: v.item() for k, v in terms.items()} | {"total": loss.item()})
-        if step % 100 == 0:
-            last = {k: np.mean([h[k] for h in history[-100:]]) for k in history[-1]}
-            print(f"step {step} " + " ".join(f"{k} {v:.4f}" for k, v in last.items()) + f" {time.time() - start:.0f}s", flush=True)
-        if time.time() - start > cfg["minutes"] * 60:
-            print(f"time limit at step {step}", flush=True)
-            break
-    elapsed = time.time() - start
-    export(net.cpu().eval(), args, cfg, manifest, step, elapsed, history)
+        return losses.total(pred, x0, sigma, net)
+
+    steps_done, elapsed, history = common.fit(net, opt, cfg, batch_loss)
+    export(net.cpu().eval(), args, cfg, manifest, steps_done, elapsed, history)
 
 
 def export(net, args, cfg, manifest, steps_done, elapsed, history):
@@ -78,7 +63,7 @@ def export(net, args, cfg, manifest, steps_done, elapsed, history):
     path, names, tensors = common.export_onnx(
         net, args.out, name, TILE, COND_CHANNELS, FRAME_CHANNELS, (-1.0, 1.0)
     )
-    final = {k: float(np.mean([h[k] for h in history[-100:]])) for k in history[-1]}
+    final = common.final_losses(history)
     meta = {
         "network": name,
         "kind": args.kind,
