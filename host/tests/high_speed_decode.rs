@@ -10,6 +10,7 @@ use slscan::calibration::Head;
 use slscan::highspeed::zocr::set_periods;
 use slscan::highspeed::{Decoder, DecoderConfig, HighSpeedError, PatternSet, ZocrNet};
 use slscan::raster::Raster;
+use slscan::simd::Simd;
 use slscan::synth::high_speed::{high_speed_exposure, high_speed_head};
 use slscan::synth::{trace, two_spheres, GroundTruth};
 
@@ -75,6 +76,34 @@ fn each_instant_lands_on_the_traced_surface() {
     assert!(right_share > 0.99, "right share {right_share}");
     assert!(median_um < 1000.0, "median depth error {median_um} um");
     assert!(rmse_um < 2500.0, "depth RMSE {rmse_um} um");
+}
+
+/// The per-pixel unwrapping built for AVX2 (rounding as instructions) and
+/// for baseline x86-64 (libm calls) gives the same bits.
+#[test]
+fn both_builds_of_the_unwrapping_give_the_same_bits() {
+    let (head, truth) = scene(160, 120);
+    let set = PatternSet::seed001(DMD).unwrap();
+    let planes = high_speed_exposure(&set, &truth, 0.002, 11);
+    let decode = |simd: Simd| {
+        let config = DecoderConfig {
+            simd,
+            ..DecoderConfig::default()
+        };
+        Decoder::new(set.clone(), &head, config)
+            .unwrap()
+            .decode([&planes[0], &planes[1], &planes[2]])
+            .unwrap()
+    };
+    let (baseline, avx2) = (decode(Simd::Baseline), decode(Simd::Avx2));
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let mut decoded = 0;
+    for (a, b) in baseline.instants.iter().zip(&avx2.instants) {
+        assert_eq!(bits(&a.absolute_phase), bits(&b.absolute_phase));
+        assert_eq!(bits(&a.depth_m), bits(&b.depth_m));
+        decoded += a.depth_m.iter().filter(|d| d.is_finite()).count();
+    }
+    assert!(decoded > 10_000, "only {decoded} depths to compare");
 }
 
 #[test]

@@ -20,6 +20,7 @@ use super::zocr::ZocrNet;
 use super::HighSpeedError;
 use crate::calibration::{Head, Pose, ProjectorModel};
 use crate::raster::Raster;
+use crate::simd::{simd_run, Simd};
 
 /// How one exposure is decoded.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -39,6 +40,9 @@ pub struct DecoderConfig {
     pub max_saturated_share: f64,
     /// The demultiplexer's stages.
     pub demux: DemuxOptions,
+    /// Which build of the per-pixel unwrapping runs (both give the same bits;
+    /// the AVX2 one is faster where the CPU has it).
+    pub simd: Simd,
 }
 
 impl Default for DecoderConfig {
@@ -51,6 +55,7 @@ impl Default for DecoderConfig {
             saturation_level: 0.995,
             max_saturated_share: 0.05,
             demux: DemuxOptions::default(),
+            simd: Simd::best(),
         }
     }
 }
@@ -231,17 +236,22 @@ impl Decoder {
         let fringes = self.demux.demodulate_all(cleaned);
         let p = self.set.patterns().len();
         let w = self.width;
+        // Built for AVX2 where the CPU has it: round, floor and ceil become
+        // instructions instead of libm calls (same bits).
+        let simd = self.config.simd;
         let rows: Vec<Vec<f32>> = (0..self.height)
             .into_par_iter()
             .map(|y| {
-                let mut row = vec![f32::NAN; 2 * p * w];
-                for x in 0..w {
-                    let i = y * w + x;
-                    if !saturated_px[i] {
-                        self.decode_pixel(i, &fringes, &mut row[2 * p * x..2 * p * (x + 1)]);
+                simd_run!(simd, {
+                    let mut row = vec![f32::NAN; 2 * p * w];
+                    for x in 0..w {
+                        let i = y * w + x;
+                        if !saturated_px[i] {
+                            self.decode_pixel(i, &fringes, &mut row[2 * p * x..2 * p * (x + 1)]);
+                        }
                     }
-                }
-                row
+                    row
+                })
             })
             .collect();
         let instants = self
@@ -275,6 +285,7 @@ impl Decoder {
     }
 
     /// Pixel `i`: per pattern (absolute phase, depth) into `out[2m], out[2m + 1]`.
+    #[inline(always)]
     fn decode_pixel(&self, i: usize, fringes: &Demultiplexed, out: &mut [f32]) {
         let ray = self.rays[i];
         if !ray[0].is_finite() {
@@ -348,6 +359,7 @@ impl Decoder {
     /// one Newton step on the exact projection. `None` off the segment or the DMD
     /// (judged on the segment's DMD points, a fraction of a pixel from exact).
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn solve_depth(
         &self,
         pat: &SetPattern,
@@ -381,6 +393,7 @@ impl Decoder {
 /// integer order of the colour with the most cycles gives a position (segment `j`,
 /// fraction `tau`); the position where the other two agree best wins. Returns
 /// (j, tau, RMS disagreement in cycles).
+#[inline(always)]
 pub fn pdm_along(phases: &[&[f64]; 3], wrapped: &[f64; 3]) -> Option<(usize, f64, f64)> {
     let len = phases[0].len();
     let span = |c: usize| (phases[c][len - 1] - phases[c][0]).abs();
@@ -416,6 +429,7 @@ pub fn pdm_along(phases: &[&[f64]; 3], wrapped: &[f64; 3]) -> Option<(usize, f64
 
 /// The DMD pixel (u, v) that lights the point at inverse depth `s` (1 / camera z)
 /// on the camera ray `(x, y, 1)`; `None` behind the projector.
+#[inline(always)]
 fn dmd_at(
     camera_to_projector: &Pose,
     projector: &ProjectorModel,
