@@ -2,9 +2,10 @@
 //! float32 frames of 3072x2048 -> wrapped phase, modulation and background per period ->
 //! heterodyne absolute phase of the finest period, done by numpy
 //! (`benches/peers/phase_unwrap.py`, run with `python3` on `.npy` files this bench writes)
-//! and by slscan twice: the pipeline's staged row kernels
-//! ([`Reconstructor::reconstruct_staged`], phase + unwrap stages) and the public map API
-//! ([`PhaseShift::wrapped_phase`] per period, then [`Heterodyne::unwrap`]).
+//! and by slscan four ways: the pipeline's staged row kernels
+//! ([`Reconstructor::reconstruct_staged`], phase + unwrap stages), the public map APIs
+//! ([`PhaseShift::wrapped_phase`] per period, then [`Heterodyne::unwrap`]), the same into
+//! reused outputs, and the one-pass [`TemporalDecoder`] (fresh and reused outputs).
 //!
 //! The frames are `A + B cos(2 pi u / P + delta_n) + noise` with a known projector
 //! coordinate `u(x, y)` (a slanted, rippled field over the 1920-px projector), a vignetted
@@ -15,17 +16,16 @@
 //! rayon threads. Without an importable numpy the peer's columns say so and slscan's are
 //! still printed. Run: `SLSCAN_BENCH_RUNS=7 cargo bench -p slscan --bench peers`.
 //!
-//! A last table says where the time goes: each side's phase and unwrap stages, and the
-//! memory floor (one parallel pass reading the 12 frames, and one writing a map).
+//! A last table says where the time goes: each side's phase and unwrap stages (the one
+//! pass has none), and the memory floor (one parallel pass reading the 12 frames, and one
+//! writing a map).
 //!
-//! On the shared 2-core development machine (AMD EPYC, AVX2 build; loaded by other
-//! builds, so the 2-thread rows gain little), numpy 2.4.6 took ~210-240 ms (phase
-//! ~105-140, unwrap ~90-105). slscan, 1 thread: staged pipeline ~63 ms (3.4-3.7x), the
-//! map APIs ~60-63 ms (3.4-3.8x; ~390 ms, 0.5x, before they ran the row kernels), into
-//! reused outputs ~52 ms (4.5x). Phase ~30-38 ms of which reading the 302 MB of frames
-//! is ~10.5 ms and fresh outputs ~8 ms, the rest atan2 / sqrt; unwrap ~20-25 ms,
-//! compute (three beat differences, a division and two roundings per pixel). Accuracy:
-//! numpy and the map APIs keep the same 99.93 % with RMS 0.0263 rad (largest 0.182, no
+//! On the idle 2-core development machine (Intel Xeon, AVX2 build), numpy 2.4.6 took
+//! ~296-315 ms (phase ~157-166, unwrap ~139-149). slscan, 2 threads: one pass into
+//! reused outputs 28.4 ms (10.4x), into fresh ones 33.7 ms (8.8x); the map APIs 32.3 ms
+//! reused (9.2x), 53.4 ms fresh; staged pipeline 35.3 ms (8.4x). Reading the 302 MB of
+//! frames alone takes 14.7 ms on 2 threads, 28.5 ms on 1. Accuracy: numpy, the map APIs
+//! and the one pass keep the same 99.93 % with RMS 0.0263 rad (largest 0.182, no
 //! miscounted order); the pipeline also refuses pixels whose modulation is too low to
 //! count orders reliably (98.51 % kept, RMS 0.0260).
 
@@ -45,6 +45,7 @@ use slscan::phase::PhaseShift;
 use slscan::raster::Raster;
 use slscan::reconstruct::{ReconstructConfig, Reconstructor};
 use slscan::unwrap::heterodyne::Heterodyne;
+use slscan::unwrap::temporal::TemporalDecoder;
 use slscan::unwrap::PixelStatus;
 
 const WIDTH: usize = 3072;
@@ -218,6 +219,46 @@ fn public_api_reused(
     (best(&times), out.phase.data)
 }
 
+/// [`TemporalDecoder::decode`]: phase and unwrap in one pass over the rows (no stage
+/// times: the stages interleave per row); its absolute phase.
+fn one_pass(decoder: &TemporalDecoder, frames: &[&Raster<f32>], runs: usize) -> (Timing, Vec<f32>) {
+    let mut times = Vec::new();
+    let mut phase = Vec::new();
+    for _ in 0..runs {
+        drop(std::mem::take(&mut phase));
+        let t = Instant::now();
+        let out = decoder.decode(frames, None).expect("frames");
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        phase = out.phase.phase.data;
+    }
+    (one_pass_timing(&times), phase)
+}
+
+/// [`one_pass`] into a result reused from call to call (`decode_into`).
+fn one_pass_reused(
+    decoder: &TemporalDecoder,
+    frames: &[&Raster<f32>],
+    runs: usize,
+) -> (Timing, Vec<f32>) {
+    let mut out = decoder.decode(frames, None).expect("frames");
+    let mut times = Vec::new();
+    for _ in 0..runs {
+        let t = Instant::now();
+        decoder.decode_into(frames, None, &mut out).expect("frames");
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    (one_pass_timing(&times), out.phase.phase.data)
+}
+
+/// Best of one-pass times: no stage split (NaN).
+fn one_pass_timing(times: &[f64]) -> Timing {
+    Timing {
+        total_ms: times.iter().copied().fold(f64::INFINITY, f64::min),
+        phase_ms: f64::NAN,
+        unwrap_ms: f64::NAN,
+    }
+}
+
 /// What the peer reported.
 struct Peer {
     version: String,
@@ -325,6 +366,7 @@ fn main() {
     let shift = PhaseShift::new(STEPS).expect("steps");
     let heterodyne = Heterodyne::new(&PERIODS_PX, f64::from(PROJECTOR_WIDTH_PX), MAX_RESIDUAL_RAD)
         .expect("periods");
+    let decoder = TemporalDecoder::new(shift.clone(), heterodyne.clone());
 
     let all_threads = rayon::current_num_threads();
     let mut thread_counts = vec![1];
@@ -344,6 +386,8 @@ fn main() {
             let (tp, pp) = pipeline(&rec, &refs, runs);
             let (ta, pa) = public_api(&shift, &heterodyne, &refs, runs);
             let (tr, pr) = public_api_reused(&shift, &heterodyne, &refs, runs);
+            let (to, po) = one_pass(&decoder, &refs, runs);
+            let (tor, por) = one_pass_reused(&decoder, &refs, runs);
             let floor = memory_floor(&refs, runs);
             [
                 ("pipeline's staged row kernels", tp, accuracy(&pp, &truth)),
@@ -356,6 +400,16 @@ fn main() {
                     "`wrapped_phase_into` + `Heterodyne::unwrap_into`, outputs reused",
                     tr,
                     accuracy(&pr, &truth),
+                ),
+                (
+                    "`TemporalDecoder::decode`, one pass",
+                    to,
+                    accuracy(&po, &truth),
+                ),
+                (
+                    "`TemporalDecoder::decode_into`, one pass, outputs reused",
+                    tor,
+                    accuracy(&por, &truth),
                 ),
             ]
             .map(|r| (r, floor))
@@ -396,10 +450,12 @@ fn main() {
         );
     }
     for (path, threads, t, (read, write)) in breakdown {
-        println!(
-            "| slscan, {path} | {threads} | {:.1} | {:.1} | {read:.1} | {write:.1} |",
-            t.phase_ms, t.unwrap_ms
-        );
+        let stages = if t.phase_ms.is_nan() {
+            format!("one pass: {:.1} | - ", t.total_ms)
+        } else {
+            format!("{:.1} | {:.1} ", t.phase_ms, t.unwrap_ms)
+        };
+        println!("| slscan, {path} | {threads} | {stages}| {read:.1} | {write:.1} |");
     }
     if std::env::var_os("SLSCAN_PEERS_KEEP").is_none() {
         let _ = std::fs::remove_dir_all(&dir);

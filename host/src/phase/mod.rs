@@ -302,13 +302,102 @@ fn decode_row_four_step<T: Sample>(
     // Cut to one length so that the loop has no bounds checks and vectorises.
     let [r0, r1, r2, r3] = [0, 1, 2, 3].map(|n| &rows[n][..width]);
     let (modulation, background) = (&mut modulation[..width], &mut background[..width]);
-    for x in 0..width {
-        let [i0, i1, i2, i3] = [r0[x], r1[x], r2[x], r3[x]].map(|v| v.to_f32() * scale);
-        let (re, im) = (i0 - i2, i3 - i1);
-        phase[x] = fast_atan2(im, re);
-        modulation[x] = 0.5 * (re * re + im * im).sqrt();
-        // Multiplying by 1/4 is exact, the same as the general loop's division by 4.
-        background[x] = (i0 + i1 + i2 + i3) * 0.25;
+    for_each_four_step(
+        r0,
+        r1,
+        r2,
+        r3,
+        scale,
+        #[inline(always)]
+        |x, [i0, i1, i2, i3]| {
+            let (re, im) = (i0 - i2, i3 - i1);
+            phase[x] = fast_atan2(im, re);
+            modulation[x] = 0.5 * (re * re + im * im).sqrt();
+            // Multiplying by 1/4 is exact, the same as the general loop's division by 4.
+            background[x] = (i0 + i1 + i2 + i3) * 0.25;
+        },
+    );
+}
+
+/// `body(x, [i0, i1, i2, i3])` for every column of four rows of one width, the samples
+/// times `scale`. At `scale = 1` (float frames) the multiply is left out: it is exact
+/// there, and one of the few operations per sample.
+#[inline(always)]
+fn for_each_four_step<T: Sample>(
+    r0: &[T],
+    r1: &[T],
+    r2: &[T],
+    r3: &[T],
+    scale: f32,
+    mut body: impl FnMut(usize, [f32; 4]),
+) {
+    let width = r0.len();
+    let (r1, r2, r3) = (&r1[..width], &r2[..width], &r3[..width]);
+    if scale == 1.0 {
+        for x in 0..width {
+            body(x, [r0[x], r1[x], r2[x], r3[x]].map(|v| v.to_f32()));
+        }
+    } else {
+        for x in 0..width {
+            body(x, [r0[x], r1[x], r2[x], r3[x]].map(|v| v.to_f32() * scale));
+        }
+    }
+}
+
+impl PhaseShift {
+    /// The wrapped phase of one row and its power `P = re^2 + im^2` (modulation is
+    /// `(2 / N) sqrt(P)`), nothing else: for periods whose phase only feeds the
+    /// unwrapping, whose smallest modulation is then one square root of the smallest
+    /// power (the same bits: square root and scaling never reorder two values). Same
+    /// phase bits as [`PhaseShift::decode_row_scaled`].
+    #[inline(always)]
+    pub(crate) fn phase_power_row_scaled<T: Sample>(
+        &self,
+        rows: &[&[T]],
+        scale: f32,
+        phase: &mut [f32],
+        power: &mut [f32],
+    ) {
+        const TILE: usize = 256;
+        let width = phase.len();
+        let power = &mut power[..width];
+        if self.steps == 4 && self.bin == 1 {
+            let [r0, r1, r2, r3] = [0, 1, 2, 3].map(|n| &rows[n][..width]);
+            let phase = &mut phase[..width];
+            for_each_four_step(
+                r0,
+                r1,
+                r2,
+                r3,
+                scale,
+                #[inline(always)]
+                |x, [i0, i1, i2, i3]| {
+                    let (re, im) = (i0 - i2, i3 - i1);
+                    phase[x] = fast_atan2(im, re);
+                    power[x] = re * re + im * im;
+                },
+            );
+            return;
+        }
+        let mut x0 = 0;
+        while x0 < width {
+            let len = TILE.min(width - x0);
+            let (mut re, mut im) = ([0.0f32; TILE], [0.0f32; TILE]);
+            let (re, im) = (&mut re[..len], &mut im[..len]);
+            for ((row, &c), &s) in rows.iter().zip(&self.cos).zip(&self.sin) {
+                let row = &row[x0..x0 + len];
+                for x in 0..len {
+                    let i = row[x].to_f32() * scale;
+                    re[x] += i * c;
+                    im[x] -= i * s;
+                }
+            }
+            for x in 0..len {
+                phase[x0 + x] = fast_atan2(im[x], re[x]);
+                power[x0 + x] = re[x] * re[x] + im[x] * im[x];
+            }
+            x0 += len;
+        }
     }
 }
 

@@ -34,6 +34,7 @@ use crate::raster::Raster;
 use crate::simd::Simd;
 use crate::triangulation::Triangulator;
 use crate::unwrap::heterodyne::Heterodyne;
+use crate::unwrap::temporal::TemporalDecoder;
 use crate::unwrap::{PixelStatus, UnwrapError};
 
 /// Which projector coordinates the frames encode.
@@ -195,9 +196,9 @@ pub struct StageTimes {
 #[derive(Clone, Debug)]
 pub struct Reconstructor {
     config: ReconstructConfig,
-    shift: PhaseShift,
-    heterodyne_u: Heterodyne,
-    heterodyne_v: Heterodyne,
+    /// Phase shifting + heterodyne of the column frames (and of the row frames).
+    decoder_u: TemporalDecoder,
+    decoder_v: TemporalDecoder,
     triangulator: Triangulator,
     /// Modulation below which the order noise is too large (see `order_sigmas`).
     min_reliable_modulation: f32,
@@ -245,9 +246,8 @@ impl Reconstructor {
             (gain * sigma_phi_times_b * config.order_sigmas / std::f64::consts::PI) as f32;
         Ok(Self {
             config,
-            shift,
-            heterodyne_u,
-            heterodyne_v,
+            decoder_u: TemporalDecoder::new(shift.clone(), heterodyne_u),
+            decoder_v: TemporalDecoder::new(shift, heterodyne_v),
             triangulator: Triangulator::new(camera, projector),
             min_reliable_modulation,
             noise_times_crb: sigma_phi_times_b as f32,

@@ -1,6 +1,7 @@
 //! The per-row stages of the pipeline, each a loop over a whole row so that it
-//! vectorises: decode (phase, modulation, background per period), unwrap (heterodyne),
-//! finish (ray/plane triangulation, status, noise, organised output).
+//! vectorises: decode and unwrap ([`TemporalDecoder`](crate::unwrap::temporal::TemporalDecoder)'s
+//! row functions: phase per period, heterodyne), finish (ray/plane triangulation, status,
+//! noise, organised output).
 //!
 //! [`super::Reconstructor::reconstruct`] runs all three per row while the row is in
 //! cache; [`super::Reconstructor::reconstruct_staged`] runs each over the whole image
@@ -11,21 +12,8 @@ use super::Reconstructor;
 use crate::phase::Sample;
 use crate::simd::simd_run;
 use crate::triangulation::ColumnHits;
-use crate::unwrap::heterodyne::Heterodyne;
+use crate::unwrap::temporal::DecodedRow;
 use crate::unwrap::PixelStatus;
-
-/// One direction of one row, decoded: `phase[p * width + x]` per period p.
-#[derive(Clone, Debug, Default)]
-pub(super) struct Decoded {
-    pub phase: Vec<f32>,
-    pub modulation: Vec<f32>,
-    /// Background A of the finest period.
-    pub background: Vec<f32>,
-    /// Smallest modulation over the periods.
-    pub min_modulation: Vec<f32>,
-    /// Absolute phase of the finest period (NaN where the heterodyne refused).
-    pub absolute: Vec<f32>,
-}
 
 /// One row's projector coordinates and what triangulating them gave.
 #[derive(Default)]
@@ -40,71 +28,20 @@ pub(super) struct Projected {
 /// Per-task buffers of the fused pass (allocated once per rayon job, not per row).
 #[derive(Default)]
 pub(super) struct Scratch {
-    pub u: Decoded,
-    pub v: Decoded,
+    pub u: DecodedRow,
+    pub v: DecodedRow,
     projected: Projected,
 }
 
 impl Reconstructor {
-    /// Decodes one direction of one row (`rows[p * N + n]` is frame n of period p),
-    /// samples scaled by `scale` into `[0, 1]` units.
-    #[inline(always)]
-    pub(super) fn decode_row<T: Sample>(&self, rows: &[&[T]], scale: f32, out: &mut Decoded) {
-        let n = self.config.steps;
-        let k = self.config.periods_px.len();
-        let width = rows[0].len();
-        out.phase.resize(k * width, 0.0);
-        out.modulation.resize(k * width, 0.0);
-        out.background.resize(width, 0.0);
-        out.min_modulation.resize(width, 0.0);
-        // Periods after the first write their background into `absolute` (overwritten
-        // by the unwrap stage): only the finest period's is kept.
-        out.absolute.resize(width, 0.0);
-        for p in 0..k {
-            let bg = if p == 0 {
-                &mut out.background
-            } else {
-                &mut out.absolute
-            };
-            self.shift.decode_row_scaled(
-                &rows[p * n..(p + 1) * n],
-                scale,
-                &mut out.phase[p * width..(p + 1) * width],
-                &mut out.modulation[p * width..(p + 1) * width],
-                bg,
-            );
-        }
-        out.min_modulation.fill(f32::INFINITY);
-        for m in out.modulation.chunks_exact(width) {
-            for (b, &m) in out.min_modulation.iter_mut().zip(m) {
-                // A non-finite modulation (NaN or infinite samples) makes the minimum NaN
-                // for good, which every threshold refuses: the pixel is masked. (`f32::min`
-                // would skip the NaN, and the period's phase is garbage then.)
-                *b = if !m.is_finite() {
-                    f32::NAN
-                } else if m < *b {
-                    m
-                } else {
-                    *b
-                };
-            }
-        }
-    }
-
-    /// Heterodyne over one decoded row: fills `dec.absolute`.
-    #[inline(always)]
-    pub(super) fn unwrap_row(heterodyne: &Heterodyne, dec: &mut Decoded) {
-        heterodyne.unwrap_row(&dec.phase, &mut dec.absolute);
-    }
-
     /// Triangulates one unwrapped row (`first_index` = index of its first pixel) into the
     /// organised output; returns the number of valid pixels.
     #[inline(always)]
     pub(super) fn finish_row(
         &self,
         first_index: usize,
-        u: &Decoded,
-        v: Option<&Decoded>,
+        u: &DecodedRow,
+        v: Option<&DecodedRow>,
         projected: &mut Projected,
         out: RowMut<'_>,
     ) -> usize {
@@ -196,8 +133,8 @@ impl Reconstructor {
     fn finish_row_two_rays(
         &self,
         first_index: usize,
-        u: &Decoded,
-        v: &Decoded,
+        u: &DecodedRow,
+        v: &DecodedRow,
         projected: &mut Projected,
         out: RowMut<'_>,
     ) -> usize {
@@ -213,8 +150,8 @@ impl Reconstructor {
         let (min_mod, min_reliable) = (self.config.min_modulation, self.min_reliable_modulation);
         // Usable (modulation above the mask) and reliable (order noise, heterodyne), per
         // direction; `&`, not `&&`, and NaN fails every comparison.
-        let usable = |d: &Decoded, x: usize| d.min_modulation[x] >= min_mod;
-        let reliable = |d: &Decoded, x: usize| {
+        let usable = |d: &DecodedRow, x: usize| d.min_modulation[x] >= min_mod;
+        let reliable = |d: &DecodedRow, x: usize| {
             usable(d, x) & (d.min_modulation[x] >= min_reliable) & !d.absolute[x].is_nan()
         };
         let Projected { column, row, hits } = projected;
@@ -288,12 +225,13 @@ impl Reconstructor {
         let span = y * width..(y + 1) * width;
         let rows: Vec<&[T]> = frames_u.iter().map(|f| &f.data[span.clone()]).collect();
         let simd = self.simd;
-        simd_run!(simd, self.decode_row(&rows, scale, &mut scratch.u));
-        simd_run!(simd, Self::unwrap_row(&self.heterodyne_u, &mut scratch.u));
+        let (du, dv) = (&self.decoder_u, &self.decoder_v);
+        simd_run!(simd, du.decode_row(&rows, scale, &mut scratch.u));
+        simd_run!(simd, du.unwrap_row(&mut scratch.u));
         if let Some(fv) = frames_v {
             let rows: Vec<&[T]> = fv.iter().map(|f| &f.data[span.clone()]).collect();
-            simd_run!(simd, self.decode_row(&rows, scale, &mut scratch.v));
-            simd_run!(simd, Self::unwrap_row(&self.heterodyne_v, &mut scratch.v));
+            simd_run!(simd, dv.decode_row(&rows, scale, &mut scratch.v));
+            simd_run!(simd, dv.unwrap_row(&mut scratch.v));
         }
         let v = frames_v.map(|_| &scratch.v);
         let projected = &mut scratch.projected;

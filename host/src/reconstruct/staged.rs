@@ -5,12 +5,13 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::rows::{Decoded, Projected};
+use super::rows::Projected;
 use super::{Directions, PixelMaps, ReconstructError, Reconstruction, Reconstructor, StageTimes};
 use crate::phase::Sample;
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
 use crate::simd::simd_run;
+use crate::unwrap::temporal::DecodedRow;
 
 impl Reconstructor {
     /// The same stages as [`Reconstructor::reconstruct`] but as separate passes over the
@@ -30,13 +31,13 @@ impl Reconstructor {
         let mut times = StageTimes::default();
 
         let t = Instant::now();
-        let mut decoded: Vec<Decoded> = (0..height)
+        let mut decoded: Vec<DecodedRow> = (0..height)
             .into_par_iter()
             .map(|y| {
                 let span = y * width..(y + 1) * width;
                 let rows: Vec<&[T]> = frames_u.iter().map(|f| &f.data[span.clone()]).collect();
-                let mut d = Decoded::default();
-                simd_run!(self.simd, self.decode_row(&rows, scale, &mut d));
+                let mut d = DecodedRow::default();
+                simd_run!(self.simd, self.decoder_u.decode_row(&rows, scale, &mut d));
                 d
             })
             .collect();
@@ -45,7 +46,7 @@ impl Reconstructor {
         let t = Instant::now();
         decoded
             .par_iter_mut()
-            .for_each(|d| simd_run!(self.simd, Self::unwrap_row(&self.heterodyne_u, d)));
+            .for_each(|d| simd_run!(self.simd, self.decoder_u.unwrap_row(d)));
         times.unwrap_s = t.elapsed().as_secs_f64();
 
         let t = Instant::now();

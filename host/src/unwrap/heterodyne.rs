@@ -234,7 +234,6 @@ impl Heterodyne {
                 *slot = level[0];
             }
             let mut abs = [0.0f32; TILE];
-            let mut ok = [true; TILE];
             let top = &chain[k - 1];
             for x in 0..n {
                 abs[x] = top[x] + tau * super::ceil_fast((self.top_floor_rad - top[x]) / tau);
@@ -243,18 +242,20 @@ impl Heterodyne {
                 let ratio = self.ratios[l];
                 let c = &chain[l];
                 for x in 0..n {
-                    // `fringe_order` without the early return.
+                    // `fringe_order` without the early return: a refused pixel turns
+                    // NaN, which every later level keeps (a NaN residual fails too).
                     let estimate = abs[x] * ratio;
                     let turns = (estimate - c[x]) * (1.0 / tau);
                     let order = super::round_fast(turns);
                     let residual = (turns - order) * tau;
-                    ok[x] &= residual.abs() <= max_residual;
-                    abs[x] = c[x] + tau * order;
+                    abs[x] = if residual.abs() <= max_residual {
+                        c[x] + tau * order
+                    } else {
+                        f32::NAN
+                    };
                 }
             }
-            for x in 0..n {
-                absolute[x0 + x] = if ok[x] { abs[x] } else { f32::NAN };
-            }
+            absolute[x0..x0 + n].copy_from_slice(&abs[..n]);
             x0 += n;
         }
     }
@@ -329,7 +330,7 @@ impl Heterodyne {
 /// One row's status from its unwrapped phase (NaN: refused) and mask, the phase set to
 /// NaN where masked. Selects only, so the loop vectorises.
 #[inline(always)]
-fn status_row(phase: &mut [f32], status: &mut [PixelStatus], mask: Option<&[bool]>) {
+pub(crate) fn status_row(phase: &mut [f32], status: &mut [PixelStatus], mask: Option<&[bool]>) {
     let status = &mut status[..phase.len()];
     match mask {
         Some(mask) => {

@@ -8,6 +8,9 @@
 //! | complementary Gray code + phase | [`complementary_gray`] | `n + 1` bits, finest block half a period |
 //! | quality-guided spatial flood fill | [`quality_guided`] | one frequency, connected surface |
 //!
+//! [`temporal`] runs phase shifting and the heterodyne in one pass from the frames (the
+//! pipeline's own row kernels).
+//!
 //! Every method returns an [`AbsolutePhase`]: the absolute phase `Phi = 2 pi u / P` of one
 //! chosen period (projector coordinate `u`, pixel centres at integers) and a per-pixel
 //! [`PixelStatus`]. Pixels a method cannot unwrap reliably are marked, never guessed.
@@ -17,6 +20,7 @@ pub mod gray_code;
 pub mod heterodyne;
 pub mod pdm;
 pub mod quality_guided;
+pub mod temporal;
 
 use crate::raster::Raster;
 
@@ -169,22 +173,42 @@ pub fn fringe_order(estimate_rad: f32, wrapped_rad: f32, max_residual_rad: f32) 
     (residual.abs() <= max_residual_rad).then_some(k)
 }
 
-/// Round half away from zero through an integer conversion. `f32::round`/`floor` are libm
-/// calls on baseline x86-64 (no SSE4.1), and these run for every pixel; fringe orders
-/// are far inside the i32 range (larger inputs saturate, NaN gives 0).
+/// Round half away from zero, exactly as `f32::round` for every finite input, in plain
+/// adds and selects. `f32::round`/`ceil` are libm calls on baseline x86-64 (no SSE4.1),
+/// and a float-to-int cast is a scalar saturating conversion per lane that keeps the
+/// loops from vectorising; these run for every pixel.
 #[inline(always)]
 pub fn round_fast(x: f32) -> f32 {
-    (x + 0.5f32.copysign(x)) as i32 as f32
+    let t = round_half_even(x);
+    // Ties went to the even neighbour; send them away from zero.
+    if (x - t).abs() == 0.5 {
+        x + 0.5f32.copysign(x)
+    } else {
+        t
+    }
 }
 
-/// `ceil` through an integer conversion (see [`round_fast`]).
+/// `ceil`, exactly as `f32::ceil` for every finite input (see [`round_fast`]).
 #[inline(always)]
 pub fn ceil_fast(x: f32) -> f32 {
-    let t = x as i32 as f32;
+    let t = round_half_even(x);
     if t < x {
         t + 1.0
     } else {
         t
+    }
+}
+
+/// Nearest integer, ties to even: adding and removing 2^23 leaves no fraction bits
+/// (exact below 2^23; from there on every f32 is already an integer). NaN stays NaN.
+#[inline(always)]
+fn round_half_even(x: f32) -> f32 {
+    const TWO_23: f32 = 8_388_608.0;
+    let m = TWO_23.copysign(x);
+    if x.abs() < TWO_23 {
+        (x + m) - m
+    } else {
+        x
     }
 }
 
@@ -201,7 +225,25 @@ mod tests {
         }
         assert_eq!(round_fast(2.5), 3.0);
         assert_eq!(round_fast(-2.5), -3.0);
+        assert_eq!(round_fast(3.5), 4.0);
+        assert_eq!(round_fast(0.49999997), 0.0);
         assert_eq!(ceil_fast(-0.5), 0.0);
+        // Every tie, where an f32 has no fraction bits left, and the zeros (equal as
+        // numbers; the sign of a zero result may differ from std's).
+        let ties = (-300..300).map(|i| i as f32 + 0.5);
+        for x in ties.chain([
+            8_388_607.5f32,
+            -8_388_607.5,
+            8_388_609.0,
+            3.0e9,
+            -3.0e9,
+            0.0,
+            -0.0,
+        ]) {
+            assert_eq!(round_fast(x), x.round(), "{x}");
+            assert_eq!(ceil_fast(x), x.ceil(), "{x}");
+        }
+        assert!(round_fast(f32::NAN).is_nan() && ceil_fast(f32::NAN).is_nan());
     }
 
     #[test]
