@@ -78,8 +78,8 @@ fn each_instant_lands_on_the_traced_surface() {
     assert!(rmse_um < 2500.0, "depth RMSE {rmse_um} um");
 }
 
-/// The per-pixel unwrapping built for AVX2 (rounding as instructions) and
-/// for baseline x86-64 (libm calls) gives the same bits.
+/// The per-pixel demultiplexing and unwrapping built for AVX2 (rounding as
+/// instructions, 8 lanes) and for baseline x86-64 (libm calls) give the same bits.
 #[test]
 fn both_builds_of_the_unwrapping_give_the_same_bits() {
     let (head, truth) = scene(160, 120);

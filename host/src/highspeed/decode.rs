@@ -145,7 +145,8 @@ impl Decoder {
                     .map_or([f64::NAN; 2], |p| p)
             })
             .collect();
-        let demux = Demultiplexer::new(&set, width, height, reference, config.demux)?;
+        let demux = Demultiplexer::new(&set, width, height, reference, config.demux)?
+            .with_simd(config.simd);
         Ok(Self {
             set,
             camera_to_projector,

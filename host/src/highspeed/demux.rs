@@ -22,6 +22,8 @@ use rustfft::num_complex::Complex32;
 use super::set::PatternSet;
 use super::HighSpeedError;
 use crate::fft2::Fft2;
+use crate::phase::{fast_atan2, fast_sin_cos, wrap_pi};
+use crate::simd::{simd_run, Simd};
 
 /// How the exposure is demultiplexed (the stages of the ablation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -90,6 +92,8 @@ pub struct Demultiplexer {
     colours: Vec<usize>,
     windows: Vec<Window>,
     options: DemuxOptions,
+    /// Which build of the per-pixel loops runs (both give the same bits).
+    simd: Simd,
 }
 
 impl Demultiplexer {
@@ -128,6 +132,7 @@ impl Demultiplexer {
             colours,
             windows,
             options,
+            simd: Simd::best(),
         })
     }
 
@@ -138,6 +143,12 @@ impl Demultiplexer {
         check_crosstalk(&m)?;
         self.options.crosstalk = Some(m);
         Ok(self)
+    }
+
+    /// The same demultiplexer with its per-pixel loops built for `simd`.
+    pub fn with_simd(mut self, simd: Simd) -> Self {
+        self.simd = simd;
+        self
     }
 
     /// Each pattern's window.
@@ -197,38 +208,39 @@ impl Demultiplexer {
 
     /// The band below `sigma` cycles per pixel (a Gaussian at DC).
     fn low_band(&self, signal: &[f32], sigma: f32) -> Vec<f32> {
-        let (w, h) = self.fft.size();
         let mut image: Vec<Complex32> = signal.iter().map(|&v| Complex32::new(v, 0.0)).collect();
-        let mut spectrum = vec![Complex32::default(); w * h];
+        let mut spectrum = vec![Complex32::default(); image.len()];
         self.fft.forward(&mut image, &mut spectrum);
         let k = -0.5 / (sigma * sigma);
+        self.apply_gaussian(&mut spectrum, |fx, fy| k * (fx * fx + fy * fy));
+        self.fft.inverse(&mut spectrum, &mut image);
+        image.iter().map(|z| z.re).collect()
+    }
+
+    /// Multiplies the (transposed) spectrum by `exp(exponent(fx, fy))`. Bins
+    /// where that is below f32's smallest value are set to zero without calling
+    /// `exp`: the windows are narrow, so most of the spectrum is such bins.
+    fn apply_gaussian(&self, spectrum: &mut [Complex32], exponent: impl Fn(f32, f32) -> f32) {
+        let (w, h) = self.fft.size();
         for (kx, column) in spectrum.chunks_mut(h).enumerate() {
             let fx = Fft2::frequency(kx, w);
             for (ky, z) in column.iter_mut().enumerate() {
-                let fy = Fft2::frequency(ky, h);
-                *z *= (k * (fx * fx + fy * fy)).exp();
+                let e = exponent(fx, Fft2::frequency(ky, h));
+                *z = if e > -104.0 {
+                    *z * e.exp()
+                } else {
+                    Complex32::default()
+                };
             }
         }
-        self.fft.inverse(&mut spectrum, &mut image);
-        image.iter().map(|z| z.re).collect()
     }
 
     /// Pattern `m` out of its LED's signal: (wrapped phase, modulation).
     fn demodulate(&self, signal: &[f32], m: usize) -> (Vec<f32>, Vec<f32>) {
         let (w, h) = self.fft.size();
-        let carrier = self.carrier_cycles(m);
-        let mut image: Vec<Complex32> = signal
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| {
-                let phase = carrier(i);
-                if !(phase.is_finite() && v.is_finite()) {
-                    return Complex32::default();
-                }
-                let (s, c) = phase.sin_cos();
-                Complex32::new(v * c, -v * s)
-            })
-            .collect();
+        let carrier = self.carrier_phase(m);
+        let mut image = vec![Complex32::default(); w * h];
+        simd_run!(self.simd, shift_to_baseband(signal, &carrier, &mut image));
         let mut spectrum = vec![Complex32::default(); w * h];
         self.fft.forward(&mut image, &mut spectrum);
         let win = &self.windows[m];
@@ -238,53 +250,72 @@ impl Demultiplexer {
             -0.5 / (win.sigma_along * win.sigma_along),
             -0.5 / (win.sigma_across * win.sigma_across),
         );
-        for (kx, column) in spectrum.chunks_mut(h).enumerate() {
-            let fx = Fft2::frequency(kx, w);
-            for (ky, z) in column.iter_mut().enumerate() {
-                let fy = Fft2::frequency(ky, h);
-                let along = fx * ax + fy * ay;
-                let across = -fx * ay + fy * ax;
-                *z *= (ka * along * along + kc * across * across).exp();
-            }
-        }
+        self.apply_gaussian(&mut spectrum, |fx, fy| {
+            let along = fx * ax + fy * ay;
+            let across = -fx * ay + fy * ax;
+            ka * along * along + kc * across * across
+        });
         self.fft.inverse(&mut spectrum, &mut image);
-        let mut phase = Vec::with_capacity(w * h);
-        let mut modulation = Vec::with_capacity(w * h);
-        for (i, z) in image.iter().enumerate() {
-            phase.push(wrap(carrier(i) + z.arg()));
-            modulation.push(2.0 * z.norm());
-        }
+        let mut phase = vec![0.0; w * h];
+        let mut modulation = vec![0.0; w * h];
+        simd_run!(
+            self.simd,
+            phase_and_modulation(&image, &carrier, &mut phase, &mut modulation)
+        );
         (phase, modulation)
     }
 
-    /// Pattern `m`'s carrier phase at pixel `i` (radians, reduced mod 2 pi in f64
-    /// so f32 keeps its precision).
-    fn carrier_cycles(&self, m: usize) -> impl Fn(usize) -> f32 + '_ {
+    /// Pattern `m`'s carrier phase at every pixel (radians in [0, 2 pi), reduced
+    /// in f64 so f32 keeps its precision; NaN where the reference is unknown).
+    fn carrier_phase(&self, m: usize) -> Vec<f32> {
         let g = self.frequencies[m];
-        let win = self.windows[m];
-        let (w, _) = self.fft.size();
-        let reference = self.options.reference_demodulation;
-        move |i| {
-            let cycles = if reference {
-                let p = self.reference_dmd[i];
-                g[0] * p[0] + g[1] * p[1]
-            } else {
-                f64::from(win.carrier[0]) * (i % w) as f64
-                    + f64::from(win.carrier[1]) * (i / w) as f64
-            };
-            (std::f64::consts::TAU * (cycles - cycles.floor())) as f32
+        let (w, h) = self.fft.size();
+        let mut out = vec![0.0f32; w * h];
+        if self.options.reference_demodulation {
+            simd_run!(self.simd, {
+                for (o, p) in out.iter_mut().zip(&self.reference_dmd) {
+                    let cycles = g[0] * p[0] + g[1] * p[1];
+                    *o = (std::f64::consts::TAU * (cycles - cycles.floor())) as f32;
+                }
+            });
+        } else {
+            let win = self.windows[m];
+            for (i, o) in out.iter_mut().enumerate() {
+                let cycles = f64::from(win.carrier[0]) * (i % w) as f64
+                    + f64::from(win.carrier[1]) * (i / w) as f64;
+                *o = (std::f64::consts::TAU * (cycles - cycles.floor())) as f32;
+            }
         }
+        out
     }
 }
 
-/// Wraps into (-pi, pi].
-fn wrap(a: f32) -> f32 {
-    let t = std::f32::consts::TAU;
-    let r = a - t * (a / t).round();
-    if r <= -std::f32::consts::PI {
-        r + t
-    } else {
-        r
+/// `signal * exp(-i carrier)` (zero where either is not finite): the pattern's
+/// fringe moved to the spectrum's centre.
+#[inline(always)]
+fn shift_to_baseband(signal: &[f32], carrier: &[f32], image: &mut [Complex32]) {
+    for ((z, &v), &phase) in image.iter_mut().zip(signal).zip(carrier) {
+        let (s, c) = fast_sin_cos(phase);
+        let keep = phase.is_finite() && v.is_finite();
+        *z = if keep {
+            Complex32::new(v * c, -v * s)
+        } else {
+            Complex32::default()
+        };
+    }
+}
+
+/// The filtered baseband back on its carrier: wrapped phase and modulation `2 |z|`.
+#[inline(always)]
+fn phase_and_modulation(
+    image: &[Complex32],
+    carrier: &[f32],
+    phase: &mut [f32],
+    modulation: &mut [f32],
+) {
+    for (((z, &c), p), b) in image.iter().zip(carrier).zip(phase).zip(modulation) {
+        *p = wrap_pi(c + fast_atan2(z.im, z.re));
+        *b = 2.0 * (z.re * z.re + z.im * z.im).sqrt();
     }
 }
 
@@ -413,7 +444,7 @@ mod tests {
                     let q = reference[i];
                     let truth =
                         PatternSet::phase_at(p, q[0], q[1]) + offset(p.index, x as f64, y as f64);
-                    err.push(wrap((f64::from(out.wrapped[p.index][i]) - truth) as f32).abs());
+                    err.push(wrap_pi((f64::from(out.wrapped[p.index][i]) - truth) as f32).abs());
                     modulation.push(out.modulation[p.index][i]);
                 }
             }
