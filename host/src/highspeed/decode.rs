@@ -11,7 +11,7 @@
 //! mix). Each pattern's absolute phase then gives its own depth along the ray,
 //! so the 24 depth maps are 24 instants 200 us apart, not one average.
 
-use nalgebra::Point3;
+use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use super::demux::{Demultiplexed, Demultiplexer, DemuxOptions};
@@ -141,7 +141,8 @@ impl Decoder {
         let reference: Vec<[f64; 2]> = rays
             .par_iter()
             .map(|r| {
-                dmd_at(&camera_to_projector, &projector, r, 1.0 / z_ref)
+                let along = ray_in_projector(&camera_to_projector, r);
+                dmd_on_ray(&camera_to_projector, &projector, &along, 1.0 / z_ref)
                     .map_or([f64::NAN; 2], |p| p)
             })
             .collect();
@@ -236,73 +237,77 @@ impl Decoder {
         };
         let fringes = self.demux.demodulate_all(cleaned);
         let p = self.set.patterns().len();
-        let w = self.width;
+        let (w, h) = (self.width, self.height);
+        // Maps 0..p: absolute phase of pattern m; p..2p: its depth. Filled in
+        // bands of rows, each band's slice of every map written by one task, so
+        // no per-pixel record is gathered into 48 maps afterwards.
+        let mut maps: Vec<Vec<f32>> = (0..2 * p).map(|_| vec![0.0f32; w * h]).collect();
+        const BAND_ROWS: usize = 4;
+        let mut bands: Vec<Vec<&mut [f32]>> = (0..h.div_ceil(BAND_ROWS))
+            .map(|_| Vec::with_capacity(2 * p))
+            .collect();
+        for map in &mut maps {
+            for (band, rows) in bands.iter_mut().zip(map.chunks_mut(BAND_ROWS * w)) {
+                band.push(rows);
+            }
+        }
         // Built for AVX2 where the CPU has it: round, floor and ceil become
         // instructions instead of libm calls (same bits).
         let simd = self.config.simd;
-        let rows: Vec<Vec<f32>> = (0..self.height)
-            .into_par_iter()
-            .map(|y| {
-                simd_run!(simd, {
-                    let mut row = vec![f32::NAN; 2 * p * w];
-                    for x in 0..w {
-                        let i = y * w + x;
-                        if !saturated_px[i] {
-                            self.decode_pixel(i, &fringes, &mut row[2 * p * x..2 * p * (x + 1)]);
-                        }
+        bands.into_par_iter().enumerate().for_each(|(b, mut out)| {
+            simd_run!(simd, {
+                for o in out.iter_mut() {
+                    o.fill(f32::NAN);
+                }
+                let first = b * BAND_ROWS * w;
+                for at in 0..out[0].len() {
+                    if !saturated_px[first + at] {
+                        self.decode_pixel(first + at, &fringes, &mut out, at);
                     }
-                    row
-                })
+                }
             })
-            .collect();
+        });
         let instants = self
             .set
             .patterns()
             .iter()
             .map(|pattern| {
                 let m = pattern.index;
-                let mut absolute_phase = Vec::with_capacity(w * self.height);
-                let mut depth_m = Vec::with_capacity(w * self.height);
-                for row in &rows {
-                    for x in 0..w {
-                        absolute_phase.push(row[2 * p * x + 2 * m]);
-                        depth_m.push(row[2 * p * x + 2 * m + 1]);
-                    }
-                }
                 InstantMap {
                     pattern: *pattern,
-                    absolute_phase,
-                    depth_m,
+                    absolute_phase: std::mem::take(&mut maps[m]),
+                    depth_m: std::mem::take(&mut maps[p + m]),
                 }
             })
             .collect();
         Ok(Decoded {
             width: w,
-            height: self.height,
+            height: h,
             fringes,
             instants,
             saturated,
         })
     }
 
-    /// Pixel `i`: per pattern (absolute phase, depth) into `out[2m], out[2m + 1]`.
+    /// Pixel `i`: per pattern `m` its absolute phase into `out[m][at]` and its
+    /// depth into `out[p + m][at]` (p patterns); untouched where not decoded.
     #[inline(always)]
-    fn decode_pixel(&self, i: usize, fringes: &Demultiplexed, out: &mut [f32]) {
+    fn decode_pixel(&self, i: usize, fringes: &Demultiplexed, out: &mut [&mut [f32]], at: usize) {
         let ray = self.rays[i];
         if !ray[0].is_finite() {
             return;
         }
         let (near, far) = self.config.depth_range_m;
-        let j_count = self.config.samples;
         let (s0, s1) = (1.0 / far, 1.0 / near);
-        let ds = (s1 - s0) / (j_count - 1) as f64;
         let mut dmd = [[f64::NAN; 2]; 64];
-        let j_count = j_count.min(dmd.len());
+        let j_count = self.config.samples.min(dmd.len());
+        let ds = (s1 - s0) / (j_count - 1) as f64;
+        let along = ray_in_projector(&self.camera_to_projector, &ray);
         for (j, d) in dmd.iter_mut().enumerate().take(j_count) {
-            if let Some(p) = dmd_at(
+            if let Some(p) = dmd_on_ray(
                 &self.camera_to_projector,
                 &self.projector,
-                &ray,
+                &along,
                 s0 + j as f64 * ds,
             ) {
                 *d = p;
@@ -310,6 +315,7 @@ impl Decoder {
         }
         let dmd = &dmd[..j_count];
         let directions = self.set.directions();
+        let p = self.set.patterns().len();
         for n in 1..=directions as u32 {
             let pats = [0, 1, 2].map(|c| self.set.pattern(n, c));
             let mut wrapped = [0.0f64; 3];
@@ -346,19 +352,21 @@ impl Decoder {
                 let ph = phases[c];
                 let predicted = ph[j] + tau * (ph[j + 1] - ph[j]);
                 let absolute = wrapped[c] + (predicted - wrapped[c]).round();
-                let Some(s) = self.solve_depth(pat, ph, dmd, absolute, &ray, s0, ds) else {
+                let Some(s) = self.solve_depth(pat, ph, dmd, absolute, &along, j, s0, ds) else {
                     continue;
                 };
-                out[2 * pat.index] = (std::f64::consts::TAU * absolute) as f32;
-                out[2 * pat.index + 1] = (1.0 / s) as f32;
+                out[pat.index][at] = (std::f64::consts::TAU * absolute) as f32;
+                out[p + pat.index][at] = (1.0 / s) as f32;
             }
         }
     }
 
     /// The inverse depth where `pat`'s phase along the ray is `absolute` cycles:
-    /// the bracketing segment of the samples `ph` (at the DMD points `dmd`), then
-    /// one Newton step on the exact projection. `None` off the segment or the DMD
-    /// (judged on the segment's DMD points, a fraction of a pixel from exact).
+    /// the samples' segment that brackets it, searched outward from segment
+    /// `near` (where PDM put the pixel: the bracket is there or next to it),
+    /// then one Newton step on the exact projection. `None` off the segment or
+    /// the DMD (judged on the segment's DMD points, a fraction of a pixel from
+    /// exact).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn solve_depth(
@@ -367,18 +375,26 @@ impl Decoder {
         ph: &[f64],
         dmd: &[[f64; 2]],
         absolute: f64,
-        ray: &[f64; 2],
+        along: &Vector3<f64>,
+        near: usize,
         s0: f64,
         ds: f64,
     ) -> Option<f64> {
-        let j = (0..ph.len() - 1).find(|&j| {
+        let brackets = |j: usize| {
             let (a, b) = (ph[j], ph[j + 1]);
             a.is_finite() && b.is_finite() && (a - absolute) * (b - absolute) <= 0.0 && a != b
+        };
+        let segments = ph.len() - 1;
+        let j = (0..segments).find_map(|d| {
+            [near.checked_sub(d), Some(near + d)]
+                .into_iter()
+                .flatten()
+                .find(|&j| j < segments && brackets(j))
         })?;
         let slope = (ph[j + 1] - ph[j]) / ds;
         let tau = (absolute - ph[j]) / (ph[j + 1] - ph[j]);
         let mut s = s0 + j as f64 * ds + tau * ds;
-        let p = dmd_at(&self.camera_to_projector, &self.projector, ray, s)?;
+        let p = dmd_on_ray(&self.camera_to_projector, &self.projector, along, s)?;
         s -= (pat.frequency[0] * p[0] + pat.frequency[1] * p[1] - absolute) / slope;
         let (w, h) = self.set.dmd_px();
         let (a, b) = (dmd[j], dmd[j + 1]);
@@ -399,46 +415,72 @@ pub fn pdm_along(phases: &[&[f64]; 3], wrapped: &[f64; 3]) -> Option<(usize, f64
     let len = phases[0].len();
     let span = |c: usize| (phases[c][len - 1] - phases[c][0]).abs();
     let r = (0..3).max_by(|&a, &b| span(a).total_cmp(&span(b)))?;
-    let mut best: Option<(usize, f64, f64)> = None;
+    let others = match r {
+        0 => [1, 2],
+        1 => [0, 2],
+        _ => [0, 1],
+    };
+    // Colour c's squared distance to its nearest order at (j, tau).
+    let miss = |c: usize, j: usize, tau: f64| {
+        let at = phases[c][j] + tau * (phases[c][j + 1] - phases[c][j]);
+        let d = at - wrapped[c];
+        let e = d - d.round();
+        e * e
+    };
+    let mut best: Option<(usize, f64)> = None;
+    let mut best_score = f64::INFINITY;
     for j in 0..len - 1 {
         let (a, b) = (phases[r][j], phases[r][j + 1]);
         if !(a.is_finite() && b.is_finite()) || a == b {
             continue;
         }
+        let per_cycle = 1.0 / (b - a);
         let (lo, hi) = (a.min(b), a.max(b));
-        let first = (lo - wrapped[r]).ceil() as i64;
-        let last = (hi - wrapped[r]).floor() as i64;
-        for k in first..=last {
-            let tau = (wrapped[r] + k as f64 - a) / (b - a);
+        // Orders as floats: a float-to-int cast is a scalar conversion with checks.
+        let mut k = (lo - wrapped[r]).ceil();
+        let last = (hi - wrapped[r]).floor();
+        while k <= last {
+            let tau = (wrapped[r] + k - a) * per_cycle;
+            k += 1.0;
             // Half-open segments, so a sample's order is counted once.
             if tau >= 1.0 && j + 2 < len {
                 continue;
             }
-            let mut score = 0.0;
-            for c in (0..3).filter(|&c| c != r) {
-                let at = phases[c][j] + tau * (phases[c][j + 1] - phases[c][j]);
-                let d = at - wrapped[c];
-                score += (d - d.round()).powi(2);
+            // Most orders miss already on the first colour: the second can
+            // only add, so they are out without it (the same winner).
+            let first = miss(others[0], j, tau);
+            if first >= best_score {
+                continue;
             }
-            if best.is_none_or(|b| score < b.2) {
-                best = Some((j, tau, score));
+            let score = first + miss(others[1], j, tau);
+            if score < best_score {
+                best_score = score;
+                best = Some((j, tau));
             }
         }
     }
-    best.map(|(j, tau, score)| (j, tau, (score / 2.0).sqrt()))
+    best.map(|(j, tau)| (j, tau, (best_score / 2.0).sqrt()))
 }
 
-/// The DMD pixel (u, v) that lights the point at inverse depth `s` (1 / camera z)
-/// on the camera ray `(x, y, 1)`; `None` behind the projector.
+/// The camera ray `(x, y, 1)` turned into the projector frame: with `t` the
+/// pose's translation, the point at inverse depth `s` on the ray is
+/// `(along + s t) / s` there.
 #[inline(always)]
-fn dmd_at(
+fn ray_in_projector(camera_to_projector: &Pose, ray: &[f64; 2]) -> Vector3<f64> {
+    camera_to_projector.rotation * Vector3::new(ray[0], ray[1], 1.0)
+}
+
+/// The DMD pixel (u, v) that lights the point at inverse depth `s` (1 / camera
+/// z) on the ray `along` ([`ray_in_projector`]); `None` behind the projector.
+#[inline(always)]
+fn dmd_on_ray(
     camera_to_projector: &Pose,
     projector: &ProjectorModel,
-    ray: &[f64; 2],
+    along: &Vector3<f64>,
     s: f64,
 ) -> Option<[f64; 2]> {
-    let z = 1.0 / s;
-    let d = camera_to_projector.apply(&Point3::new(ray[0] * z, ray[1] * z, z));
+    // The point times s > 0: the same projection, no division by s.
+    let d = along + camera_to_projector.translation_m * s;
     if d.z <= 0.0 {
         return None;
     }
