@@ -143,7 +143,7 @@ impl Decoder {
             .map(|r| {
                 let along = ray_in_projector(&camera_to_projector, r);
                 dmd_on_ray(&camera_to_projector, &projector, &along, 1.0 / z_ref)
-                    .map_or([f64::NAN; 2], |p| p)
+                    .unwrap_or([f64::NAN; 2])
             })
             .collect();
         let demux = Demultiplexer::new(&set, width, height, reference, config.demux)?

@@ -218,15 +218,15 @@ impl Demultiplexer {
     }
 
     /// Multiplies the (transposed) spectrum by `exp(exponent(fx, fy))`. Bins
-    /// where that is below f32's smallest value are set to zero without calling
-    /// `exp`: the windows are narrow, so most of the spectrum is such bins.
+    /// where that underflows ([`EXP_UNDERFLOW`]) are set to zero without
+    /// calling `exp`: the windows are narrow, so most of the spectrum is such bins.
     fn apply_gaussian(&self, spectrum: &mut [Complex32], exponent: impl Fn(f32, f32) -> f32) {
         let (w, h) = self.fft.size();
         for (kx, column) in spectrum.chunks_mut(h).enumerate() {
             let fx = Fft2::frequency(kx, w);
             for (ky, z) in column.iter_mut().enumerate() {
                 let e = exponent(fx, Fft2::frequency(ky, h));
-                *z = if e > -104.0 {
+                *z = if e > EXP_UNDERFLOW {
                     *z * e.exp()
                 } else {
                     Complex32::default()
@@ -265,8 +265,8 @@ impl Demultiplexer {
         (phase, modulation)
     }
 
-    /// Pattern `m`'s carrier phase at every pixel (radians in [0, 2 pi), reduced
-    /// in f64 so f32 keeps its precision; NaN where the reference is unknown).
+    /// Pattern `m`'s carrier phase at every pixel (radians in [0, 2 pi); NaN
+    /// where the reference is unknown).
     fn carrier_phase(&self, m: usize) -> Vec<f32> {
         let g = self.frequencies[m];
         let (w, h) = self.fft.size();
@@ -274,21 +274,31 @@ impl Demultiplexer {
         if self.options.reference_demodulation {
             simd_run!(self.simd, {
                 for (o, p) in out.iter_mut().zip(&self.reference_dmd) {
-                    let cycles = g[0] * p[0] + g[1] * p[1];
-                    *o = (std::f64::consts::TAU * (cycles - cycles.floor())) as f32;
+                    *o = cycles_to_radians(g[0] * p[0] + g[1] * p[1]);
                 }
             });
         } else {
             let win = self.windows[m];
             for (i, o) in out.iter_mut().enumerate() {
-                let cycles = f64::from(win.carrier[0]) * (i % w) as f64
-                    + f64::from(win.carrier[1]) * (i / w) as f64;
-                *o = (std::f64::consts::TAU * (cycles - cycles.floor())) as f32;
+                *o = cycles_to_radians(
+                    f64::from(win.carrier[0]) * (i % w) as f64
+                        + f64::from(win.carrier[1]) * (i / w) as f64,
+                );
             }
         }
         out
     }
 }
+
+/// A phase in cycles as radians in [0, 2 pi), the whole cycles dropped in
+/// f64 so that f32 keeps the fraction's precision.
+#[inline(always)]
+fn cycles_to_radians(cycles: f64) -> f32 {
+    (std::f64::consts::TAU * (cycles - cycles.floor())) as f32
+}
+
+/// Below this exponent `f32::exp` gives 0.
+const EXP_UNDERFLOW: f32 = -104.0;
 
 /// `signal * exp(-i carrier)` (zero where either is not finite): the pattern's
 /// fringe moved to the spectrum's centre.

@@ -492,9 +492,10 @@ pub fn fast_atan2(y: f32, x: f32) -> f32 {
     }
 }
 
-/// `(sin a, cos a)` to within 3e-7 on [0, 2 pi), 1.5e-6 for `|a| < 1e4` (checked in the tests), branch-free
-/// so that loops over carriers vectorise: libm's `sincosf` is a call per value, and the
-/// high-speed demultiplexer needs one per pixel of each of its 24 patterns.
+/// `(sin a, cos a)` to within 3e-7 on [0, 2 pi) and 1.5e-6 for `|a| < 1e4` (checked
+/// in the tests), branch-free so that loops over carriers vectorise: libm's `sincosf`
+/// is a call per value, and the high-speed demultiplexer needs one per pixel of each
+/// of its 24 patterns.
 #[inline(always)]
 pub fn fast_sin_cos(a: f32) -> (f32, f32) {
     // Quadrant by adding and removing 1.5 x 2^23 (nearest, ties even; exact for
