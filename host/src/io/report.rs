@@ -112,6 +112,8 @@ pub struct ExposureReport {
     pub images: usize,
     /// Exposure of each fringe set reconstructed, in standard exposures.
     pub exposure_scales: Vec<f64>,
+    /// Frames taken of each fringe pattern and averaged (1: none).
+    pub frames_per_pattern: usize,
     /// Fraction of the camera's pixels saturated in every fringe set
     /// (masked in the sequential mode).
     pub saturated_fraction: f64,
@@ -465,6 +467,7 @@ mod tests {
                 kind: "single".into(),
                 images: 12,
                 exposure_scales: vec![1.0],
+                frames_per_pattern: 1,
                 saturated_fraction: 0.0,
                 below_modulation_floor_fraction: f64::NAN,
                 adaptive: None,

@@ -226,13 +226,14 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
         rows.push((
             format!("exposure ({})", e.kind),
             format!(
-                "{} images; fringes at {} x the standard exposure; saturated {}, below the modulation floor {}",
+                "{} images; fringes at {} x the standard exposure, {} frame(s) averaged per pattern; saturated {}, below the modulation floor {}",
                 e.images,
                 e.exposure_scales
                     .iter()
                     .map(|s| format!("{s:.3}"))
                     .collect::<Vec<_>>()
                     .join(", "),
+                e.frames_per_pattern,
                 pct(e.saturated_fraction),
                 pct(e.below_modulation_floor_fraction)
             ),

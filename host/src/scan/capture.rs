@@ -181,24 +181,26 @@ fn sequential<R: Board + Projector + Camera>(
     for h in 0..heads {
         let (set, name) = head_set(h, heads)?;
         let (scales, preliminary) = exposure.scales(rig, config, h, set, name)?;
+        let repeats = config.frames_per_pattern.max(1);
         progress(Progress::Stage {
             name,
-            total: 2 * scales.len() as u64,
+            total: (2 * scales.len() * repeats) as u64,
         });
         rig.load_sequence(h, &patterns)?;
         let mut taken = Vec::with_capacity(count * scales.len());
         for &scale in &scales {
-            run(
-                rig,
-                &plan::one_pattern_per_scaled_exposure(set, count, scale)?,
-                name,
-            )?;
-            progress(Progress::Step);
-            taken.extend(rig.take_frames(h)?);
-            progress(Progress::Step);
+            let plan = plan::one_pattern_per_scaled_exposure(set, count, scale)?;
+            let mut takes = Vec::with_capacity(repeats);
+            for _ in 0..repeats {
+                run(rig, &plan, name)?;
+                progress(Progress::Step);
+                takes.push(rig.take_frames(h)?);
+                progress(Progress::Step);
+            }
+            taken.extend(average_takes(h, takes, config.saturation_level)?);
         }
         raw.push(taken);
-        images.push(preliminary + count * scales.len());
+        images.push(preliminary + count * scales.len() * repeats);
         set_scales.push(scales);
         progress(Progress::Done);
     }
@@ -209,9 +211,58 @@ fn sequential<R: Board + Projector + Camera>(
         set_scales,
         adaptive: Vec::new(),
         steps: config.steps,
-        noise_factor: 1.0,
+        noise_factor: 1.0 / (config.frames_per_pattern.max(1) as f32).sqrt(),
         flat: None,
     })
+}
+
+/// The per-pattern mean of several takes of the same frames (each take one
+/// run of the same plan). A pixel saturated in any take keeps its largest
+/// value, so the saturation mask still sees it: a mean of clipped and
+/// unclipped samples would pass as a true level. One take passes through.
+pub(super) fn average_takes(
+    head: usize,
+    mut takes: Vec<Vec<Raster<f32>>>,
+    saturation_level: f32,
+) -> Result<Vec<Raster<f32>>, ScanError> {
+    let Some(first) = takes.first() else {
+        return Ok(Vec::new());
+    };
+    let shape = |t: &[Raster<f32>]| t.iter().map(|f| (f.width, f.height)).collect::<Vec<_>>();
+    let want = shape(first);
+    if let Some(take) = takes.iter().position(|t| shape(t) != want) {
+        return Err(ScanError::TakesDiffer {
+            head,
+            take,
+            frames: takes[take].len(),
+            expected: want.len(),
+        });
+    }
+    if takes.len() == 1 {
+        return Ok(takes.swap_remove(0));
+    }
+    let n = takes.len() as f32;
+    let mut mean = takes.swap_remove(0);
+    let mut peak = mean.clone();
+    for take in &takes {
+        for (acc, (top, frame)) in mean.iter_mut().zip(peak.iter_mut().zip(take)) {
+            for ((a, t), &v) in acc
+                .data
+                .iter_mut()
+                .zip(top.data.iter_mut())
+                .zip(&frame.data)
+            {
+                *a += v;
+                *t = t.max(v);
+            }
+        }
+    }
+    for (acc, top) in mean.iter_mut().zip(&peak) {
+        for (a, &t) in acc.data.iter_mut().zip(&top.data) {
+            *a = if t >= saturation_level { t } else { *a / n };
+        }
+    }
+    Ok(mean)
 }
 
 fn simultaneous<R: Board + Projector + Camera>(
@@ -562,5 +613,53 @@ mod tests {
             let got = (-(s[1] - s[3])).atan2(s[0] - s[2]);
             assert!((got - want).abs() < 1e-5, "head {head}: {got} vs {want}");
         }
+    }
+
+    fn take(values: &[[f32; 2]]) -> Vec<Raster<f32>> {
+        values
+            .iter()
+            .map(|v| Raster::from_vec(2, 1, v.to_vec()).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn averaged_takes_are_the_mean_unless_a_take_saturated() {
+        let takes = vec![
+            take(&[[0.2, 0.9], [0.4, 0.1]]),
+            take(&[[0.4, 1.0], [0.6, 0.3]]),
+            take(&[[0.3, 0.95], [0.5, 0.2]]),
+        ];
+        let mean = average_takes(0, takes, 0.995).unwrap();
+        assert_eq!(mean.len(), 2);
+        let close = |a: f32, b: f32| (a - b).abs() < 1e-6;
+        assert!(close(mean[0].data[0], 0.3), "{:?}", mean[0].data);
+        // One clipped sample: the pixel keeps it, so the mask sees it.
+        assert!(close(mean[0].data[1], 1.0), "{:?}", mean[0].data);
+        assert!(close(mean[1].data[0], 0.5) && close(mean[1].data[1], 0.2));
+        // One take passes through untouched.
+        let one = average_takes(0, vec![take(&[[0.7, 0.1]])], 0.995).unwrap();
+        assert_eq!(one[0].data, vec![0.7, 0.1]);
+    }
+
+    #[test]
+    fn takes_of_another_count_or_size_are_refused() {
+        let short = vec![take(&[[0.2, 0.9], [0.4, 0.1]]), take(&[[0.4, 1.0]])];
+        assert!(matches!(
+            average_takes(1, short, 0.995),
+            Err(ScanError::TakesDiffer {
+                head: 1,
+                take: 1,
+                frames: 1,
+                expected: 2
+            })
+        ));
+        let wide = vec![
+            take(&[[0.2, 0.9]]),
+            vec![Raster::from_vec(1, 2, vec![0.1, 0.2]).unwrap()],
+        ];
+        assert!(matches!(
+            average_takes(0, wide, 0.995),
+            Err(ScanError::TakesDiffer { take: 1, .. })
+        ));
     }
 }

@@ -116,6 +116,12 @@ pub struct ScanConfig {
     /// How each head's fringes are exposed (sequential mode): once, at
     /// several exposures, or adapted per projector pixel.
     pub exposures: Exposures,
+    /// Frames taken of every fringe pattern and averaged before decoding
+    /// (sequential mode, single or multi-exposure; 1: no averaging). N
+    /// frames cut the camera noise by sqrt(N) where one exposure cannot be
+    /// made longer: what a turbid-water scan at the plan's longest exposure
+    /// needs.
+    pub frames_per_pattern: usize,
     /// Frame value at and above which a sample counts as saturated; a pixel
     /// with one in its fringe set is masked.
     pub saturation_level: f32,
@@ -148,10 +154,35 @@ impl ScanConfig {
             dealias: crate::dealias::DealiasMethod::default(),
             learned: None,
             exposures: Exposures::Single,
+            frames_per_pattern: 1,
             saturation_level: DEFAULT_SATURATION_LEVEL,
             medium: underwater::Medium::Air,
         }
     }
+}
+
+/// Most frames a scan averages per pattern (16 cut the noise by 4x; more
+/// would hold a sequential head for seconds per set).
+pub const MAX_FRAMES_PER_PATTERN: usize = 16;
+
+/// Frame averaging runs in the sequential mode's fixed or auto exposures,
+/// 1 to [`MAX_FRAMES_PER_PATTERN`] frames.
+fn check_frames_per_pattern(config: &ScanConfig) -> Result<(), ScanError> {
+    let frames = config.frames_per_pattern;
+    let why = if !(1..=MAX_FRAMES_PER_PATTERN).contains(&frames) {
+        "give 1 to 16"
+    } else if frames > 1
+        && (config.mode != Mode::Sequential
+            || !matches!(
+                config.exposures,
+                Exposures::Single | Exposures::Multi(_) | Exposures::Auto(_)
+            ))
+    {
+        "averaging runs in the sequential mode with single, multi or auto exposure"
+    } else {
+        return Ok(());
+    };
+    Err(ScanError::FramesPerPattern { frames, why })
 }
 
 /// Samples at or above 99.5 % of full scale count as saturated: a sensor
@@ -272,6 +303,27 @@ pub enum ScanError {
     /// A multi-exposure scan without exposures.
     #[error("a multi-exposure scan needs at least one exposure scale")]
     NoExposures,
+    /// The takes of an averaged capture differ in frame count or size.
+    #[error("head {head}: take {take} of the averaged frames has {frames} frames or another size than the first ({expected} frames)")]
+    TakesDiffer {
+        /// Head index.
+        head: usize,
+        /// The take that differs.
+        take: usize,
+        /// Its frame count.
+        frames: usize,
+        /// The first take's frame count.
+        expected: usize,
+    },
+    /// Frame averaging out of range, or asked of a capture that does not
+    /// average.
+    #[error("{frames} frames per pattern: {why}")]
+    FramesPerPattern {
+        /// The count asked for.
+        frames: usize,
+        /// What is wrong with it.
+        why: &'static str,
+    },
     /// Auto exposure's settings are out of range.
     #[error("{0}")]
     AutoExposure(String),
@@ -535,6 +587,7 @@ pub fn check_before_capture(
         return Err(ScanError::SaturationLevel(config.saturation_level));
     }
     underwater::check_before_capture(calibration, config)?;
+    check_frames_per_pattern(config)?;
     match &config.exposures {
         Exposures::Single => {}
         _ if config.mode != Mode::Sequential => {

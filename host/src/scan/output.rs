@@ -218,7 +218,7 @@ pub fn report(scan: &ScanResult) -> ScanReport {
                     sphere_centre_distance_error_um: t
                         .and_then(|t| centre_distance_error_m(&t.spheres))
                         .map(|e| e * um),
-                    exposure: exposure_report(h, &c.exposures),
+                    exposure: exposure_report(h, &c.exposures, c.frames_per_pattern),
                     registration: scan.fused.views.as_ref().and_then(|v| {
                         let view = v.views.get(index)?;
                         Some(HeadRegistrationReport {
@@ -405,7 +405,11 @@ fn write_underwater_pictures(
 }
 
 /// A head's exposure figures; adaptive, with its preliminaries' files.
-fn exposure_report(h: &super::HeadResult, kind: &super::Exposures) -> ExposureReport {
+fn exposure_report(
+    h: &super::HeadResult,
+    kind: &super::Exposures,
+    frames_per_pattern: usize,
+) -> ExposureReport {
     let e = &h.exposure;
     let share = |px: usize| px as f64 / e.pixels.max(1) as f64;
     let tag = h.name.to_lowercase();
@@ -442,6 +446,7 @@ fn exposure_report(h: &super::HeadResult, kind: &super::Exposures) -> ExposureRe
         kind: kind.name().into(),
         images: e.images,
         exposure_scales: e.scales.clone(),
+        frames_per_pattern,
         saturated_fraction: share(e.saturated_px),
         below_modulation_floor_fraction: share(e.below_floor_px),
         adaptive,

@@ -114,6 +114,28 @@ fn rigs_and_modes_the_board_cannot_run_are_refused_by_name() {
         check_before_capture(&rig(2, true), &two),
         Err(ScanError::ExposuresNeedSequential { .. })
     ));
+    // Frame averaging: 1..=16, sequential fixed or auto exposures only.
+    let mut c = config.clone();
+    for frames in [0, MAX_FRAMES_PER_PATTERN + 1] {
+        c.frames_per_pattern = frames;
+        assert!(matches!(
+            check_before_capture(&rig(1, false), &c),
+            Err(ScanError::FramesPerPattern { .. })
+        ));
+    }
+    c.frames_per_pattern = 4;
+    check_before_capture(&rig(1, false), &c).unwrap();
+    c.exposures = Exposures::AdaptiveHdr(crate::adaptive::hdr::HdrParams::default());
+    assert!(matches!(
+        check_before_capture(&rig(1, false), &c),
+        Err(ScanError::FramesPerPattern { frames: 4, .. })
+    ));
+    let mut two = simultaneous.clone();
+    two.frames_per_pattern = 2;
+    assert!(matches!(
+        check_before_capture(&rig(2, true), &two),
+        Err(ScanError::FramesPerPattern { frames: 2, .. })
+    ));
     let mut c = config.clone();
     c.saturation_level = 0.0;
     assert!(matches!(

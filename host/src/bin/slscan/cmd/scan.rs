@@ -198,6 +198,12 @@ pub struct Args {
     /// fringe-order noise floor and a bright one is not clipped.
     #[arg(long, conflicts_with_all = ["exposures", "adaptive"])]
     auto_exposure: bool,
+    /// Frames taken of every fringe pattern and averaged before decoding
+    /// (sequential mode; 1 to 16): N frames cut the camera noise by sqrt(N)
+    /// where the exposure cannot be made longer (turbid water at the plan's
+    /// longest exposure).
+    #[arg(long, default_value_t = 1)]
+    average_frames: usize,
     /// Frame value (0..1 of full scale) at and above which a sample counts
     /// as saturated; pixels with one are masked.
     #[arg(long, default_value_t = scan::DEFAULT_SATURATION_LEVEL)]
@@ -630,6 +636,7 @@ fn scan_sim(
     scan.periods_px = periods_for(args, mode, scan.projector_px.0);
     scan.learned = load_network(args, mode, &scan.periods_px, scan.steps)?;
     scan.exposures = exposures_for(args);
+    scan.frames_per_pattern = args.average_frames;
     scan.saturation_level = args.saturation_level;
     scan.medium = medium_for(args, &scan.periods_px, |level| {
         Some(slscan::sim::underwater::nominal_psf_sigma_px(level))
@@ -919,6 +926,7 @@ fn hardware_config(
     config.dealias = args.dealias.into();
     config.learned = load_network(args, mode, &config.periods_px, config.steps)?;
     config.exposures = exposures_for(args);
+    config.frames_per_pattern = args.average_frames;
     config.saturation_level = args.saturation_level;
     config.medium = medium_for(args, &config.periods_px, |_| None)?;
     Ok(config)
@@ -1002,11 +1010,12 @@ fn print_summary(report: &ScanReport) {
                 a.unmapped_pixels
             ),
             None => println!(
-                "head {} exposure: {}, {} images at {:?} x the standard exposure; saturated {}, below the modulation floor {}",
+                "head {} exposure: {}, {} images at {:?} x the standard exposure, {} averaged per pattern; saturated {}, below the modulation floor {}",
                 h.name,
                 e.kind,
                 e.images,
                 e.exposure_scales,
+                e.frames_per_pattern,
                 pct(e.saturated_fraction),
                 pct(e.below_modulation_floor_fraction)
             ),
