@@ -6,12 +6,18 @@
 //!
 //! Each sample is one 4-step phase-shift set: the frames as the scan's
 //! camera takes them under water (noisy, the scan's exposure rule), and the
-//! same set through clear water (the ports' refraction only, noise-free):
-//! the target, with the same pixel geometry.
+//! same set through clear water (the ports' refraction only, noise-free, at
+//! the standard exposure so that nothing clips): the target, with the same
+//! pixel geometry.
 //!
 //! ```text
-//! cargo run --release -p slscan --example underwater_dataset -- OUT COUNT SEED
+//! cargo run --release -p slscan --example underwater_dataset -- OUT COUNT SEED [SCENE]
 //! ```
+//!
+//! With `SCENE` (a built-in twin scene, e.g. `spheres`) every sample is that
+//! scene in its own rig, sample `i` at level `i % 4` and period `(i / 4) %
+//! 3`: 12 samples are the sets a water scan of it takes at each level, so
+//! the networks can be scored on a scan's scene, not only on random ones.
 //!
 //! writes `OUT/sample_NNNN.npy` (float32, 2-D `[8 H, W]`: 4 underwater
 //! frames, then 4 clear-water frames, full-scale units) and
@@ -23,7 +29,7 @@ use std::sync::Arc;
 
 use hil_sim::twin::dataset::PLACE;
 use hil_sim::twin::random_scene::random_scene;
-use hil_sim::twin::scenes::{single_head, Detail};
+use hil_sim::twin::scenes::{built_in, single_head, Detail};
 use hil_sim::twin::{
     BitDepth, Exposure, Fringe, Medium, Pattern, ProjectorTimeline, Renderer, Rig, Scene,
 };
@@ -39,12 +45,16 @@ use slscan::sim::underwater::{clear, exposure_scale, nominal_psf_sigma_px, subme
 const CAMERA: (u32, u32) = (640, 480);
 const DMD: (u32, u32) = (1280, 800);
 const STEPS: usize = 4;
+/// The clear-water target's exposure, standard exposures (see `sample`).
+const TARGET_EXPOSURE: f64 = 1.0;
 const LEVELS: [Turbidity; 4] = [Turbidity::T1, Turbidity::T2, Turbidity::T3, Turbidity::T4];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let [out, count, seed] = args.as_slice() else {
-        return Err("usage: underwater_dataset OUT COUNT SEED".into());
+    let (out, count, seed, scene) = match args.as_slice() {
+        [out, count, seed] => (out, count, seed, None),
+        [out, count, seed, scene] => (out, count, seed, Some(scene.as_str())),
+        _ => return Err("usage: underwater_dataset OUT COUNT SEED [SCENE]".into()),
     };
     let out = PathBuf::from(out);
     let count: usize = count.parse()?;
@@ -53,11 +63,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let started = std::time::Instant::now();
     let entries: Vec<serde_json::Value> = (0..count)
         .into_par_iter()
-        .map(|i| sample(&out, seed, i))
+        .map(|i| sample(&out, seed, i, scene))
         .collect::<Result<_, String>>()?;
     let manifest = serde_json::json!({
         "kind": "underwater-sets",
         "seed": seed,
+        "scene": scene,
         "count": count,
         "width": CAMERA.0,
         "height": CAMERA.1,
@@ -80,18 +91,31 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 /// Sample `i`: renders it, writes its file, returns its manifest entry.
-fn sample(out: &std::path::Path, seed: u64, i: usize) -> Result<serde_json::Value, String> {
+fn sample(
+    out: &std::path::Path,
+    seed: u64,
+    i: usize,
+    built: Option<&str>,
+) -> Result<serde_json::Value, String> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(i as u64);
-    let scene = random_scene(&mut rng, &PLACE, false).map_err(|e| e.to_string())?;
-    let level = LEVELS[rng.random_range(0..LEVELS.len())];
     let periods = water_periods_px(DMD.0);
-    let period_px = periods[rng.random_range(0..periods.len())];
     let detail = Detail {
         camera: CAMERA,
         projector: DMD,
     };
-    let mut rig = single_head(&detail);
+    let (scene, mut rig, level, period_px) = match built {
+        None => {
+            let scene = random_scene(&mut rng, &PLACE, false).map_err(|e| e.to_string())?;
+            let level = LEVELS[rng.random_range(0..LEVELS.len())];
+            let period_px = periods[rng.random_range(0..periods.len())];
+            (scene, single_head(&detail), level, period_px)
+        }
+        Some(name) => {
+            let (scene, rig) = built_in(name, &detail).map_err(|e| e.to_string())?;
+            (scene, rig, LEVELS[i % 4], periods[(i / 4) % periods.len()])
+        }
+    };
     submerge(&mut rig, level);
     let Medium::Water(water) = rig.medium else {
         return Err("submerge left the rig in air".into());
@@ -101,7 +125,12 @@ fn sample(out: &std::path::Path, seed: u64, i: usize) -> Result<serde_json::Valu
     let scale = exposure_scale(level);
     let noise_seed: u64 = rng.random();
     let wet = render(&scene, &rig, period_px, scale, Some(noise_seed))?;
-    let target = render(&scene, &clear_rig, period_px, scale, None)?;
+    // The target at the standard exposure, not the wet one: through clear
+    // water the 8x of T3 / T4 clips a quarter of the pixels, and a network
+    // trained on clipped targets learns fringes whose phase is bent (a
+    // scan's order checks then fail on bright surfaces). x0 is the target's
+    // AC over DC, so its exposure is otherwise irrelevant.
+    let target = render(&scene, &clear_rig, period_px, TARGET_EXPOSURE, None)?;
     let (w, h) = (CAMERA.0 as usize, CAMERA.1 as usize);
     let data: Vec<f32> = wet.into_iter().chain(target).flatten().collect();
     let file = format!("sample_{i:04}.npy");
@@ -116,6 +145,7 @@ fn sample(out: &std::path::Path, seed: u64, i: usize) -> Result<serde_json::Valu
         "period_px": period_px,
         "psf_sigma_px": nominal_psf_sigma_px(level),
         "exposure_scale": scale,
+        "target_exposure_scale": TARGET_EXPOSURE,
     }))
 }
 

@@ -341,9 +341,9 @@ fn medium_for(
             };
             tracing::warn!(
                 model = %path.display(),
-                "learned underwater restoration: better fringes than classical on held-out sets, \
-                 but in a whole scan its depths are wrong (models/README.md); use --restorer \
-                 classical for measurement"
+                "learned underwater restoration: decodes where classical cannot (T4 from one \
+                 frame), but where classical decodes it is less accurate (sphere radii off by \
+                 100-250 um, README); --restorer classical stays the choice for measurement"
             );
             Restorer::Learned(std::sync::Arc::new(net.with_physics(physics)))
         }
