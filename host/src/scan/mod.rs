@@ -117,7 +117,7 @@ pub struct ScanConfig {
     /// several exposures, or adapted per projector pixel.
     pub exposures: Exposures,
     /// Frames taken of every fringe pattern and averaged before decoding
-    /// (sequential mode, single or multi-exposure; 1: no averaging). N
+    /// (sequential mode, single, multi or auto exposure; 1: no averaging). N
     /// frames cut the camera noise by sqrt(N) where one exposure cannot be
     /// made longer: what a turbid-water scan at the plan's longest exposure
     /// needs.
