@@ -25,6 +25,13 @@ fn config(level: Turbidity, restorer: Restorer) -> SimScanConfig {
     config
 }
 
+/// A file of the repository's `models/` folder.
+fn shipped_model(file: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../models")
+        .join(file)
+}
+
 /// (coverage, RMSE um) of head A against the truth, printed.
 fn figures(label: &str, r: &ScanResult) -> (f64, f64) {
     let t = r.heads[0].truth.as_ref().expect("the twin has a truth");
@@ -117,8 +124,7 @@ fn t4_water_decodes_with_frames_averaged_or_the_network_not_from_one_classical_f
     // The shipped network decodes T4 from one frame per pattern (trained on
     // unclipped clear-water targets; the first, clipped-target networks kept
     // coverage 0.002 here).
-    let onnx =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/underwater_onestep.onnx");
+    let onnx = shipped_model("underwater_onestep.onnx");
     let net =
         slscan::underwater::learned::LearnedRestorer::load(&onnx, &water_periods_px(1280), 4, 1)
             .unwrap();
@@ -169,8 +175,7 @@ fn a_water_scan_needs_a_level_in_the_simulator_and_a_port_on_every_head() {
 #[test]
 fn a_restorer_model_for_other_fringes_is_refused_before_capture() {
     use slscan::underwater::learned::{LearnedRestoreError, LearnedRestorer};
-    let onnx =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/underwater_onestep.onnx");
+    let onnx = shipped_model("underwater_onestep.onnx");
     let periods = water_periods_px(1280);
     LearnedRestorer::load(&onnx, &periods, 4, 1).unwrap();
     let err = LearnedRestorer::load(&onnx, &[59.0, 64.0, 70.0], 4, 1).unwrap_err();
@@ -191,7 +196,6 @@ fn a_restorer_model_for_other_fringes_is_refused_before_capture() {
 fn the_physics_correction_changes_the_diffusion_sample_only() {
     use slscan::raster::Raster;
     use slscan::underwater::learned::{LearnedRestorer, PhysicsCorrection};
-    let models = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models");
     let periods = water_periods_px(1280);
     let set: Vec<Raster<f32>> = (0..4)
         .map(|k| {
@@ -207,7 +211,7 @@ fn the_physics_correction_changes_the_diffusion_sample_only() {
         ..PhysicsCorrection::seed(1.5)
     });
     let diffusion =
-        LearnedRestorer::load(&models.join("underwater_diffusion.onnx"), &periods, 4, 2).unwrap();
+        LearnedRestorer::load(&shipped_model("underwater_diffusion.onnx"), &periods, 4, 2).unwrap();
     let (plain, run) = diffusion.restore_set(&refs, 7).unwrap();
     let corrected = diffusion.clone().with_physics(physics);
     let (moved, run_corrected) = corrected.restore_set(&refs, 7).unwrap();
@@ -225,7 +229,7 @@ fn the_physics_correction_changes_the_diffusion_sample_only() {
     assert_eq!(change(&plain, &again), 0.0);
     assert!(change(&plain, &moved) > 1e-4, "{}", change(&plain, &moved));
     let onestep =
-        LearnedRestorer::load(&models.join("underwater_onestep.onnx"), &periods, 4, 1).unwrap();
+        LearnedRestorer::load(&shipped_model("underwater_onestep.onnx"), &periods, 4, 1).unwrap();
     let (a, _) = onestep.restore_set(&refs, 7).unwrap();
     let (b, _) = onestep.with_physics(physics).restore_set(&refs, 7).unwrap();
     assert_eq!(change(&a, &b), 0.0);

@@ -39,7 +39,9 @@ use crate::rig::{Board, Camera, Projector, RigError};
 /// Frames ready for the 4-step (or N-step) reconstruction, per head.
 pub struct Captured {
     /// Per head: the fringe frames its camera took, in trigger order (for
-    /// pictures and the saturation check), `set_scales.len()` sets of them.
+    /// pictures and the saturation check), `set_scales.len()` sets of them;
+    /// with frames averaged, each pattern's mean ([`average_takes`]: a pixel
+    /// clipped in any take keeps its clipped value).
     pub raw: Vec<Vec<Raster<f32>>>,
     /// Per head: period-major frames of `steps` shifts for the
     /// reconstruction, `set_scales.len()` sets of them one after another.
