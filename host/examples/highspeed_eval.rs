@@ -8,7 +8,8 @@
 //! its own outputs against the twin's noise-free AC and zero order, beside
 //! the formula's, and the whole decoder with it.
 //!
-//! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--zocr PATH]`
+//! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--samples N] [--zocr PATH]`
+//! (`--samples`: points on each pixel's epipolar segment, the decoder's default unless given)
 
 use std::path::PathBuf;
 
@@ -98,6 +99,7 @@ fn main() -> anyhow::Result<()> {
     };
     let count = arg("--count", 6)?;
     let seed = arg("--seed", 9001)?;
+    let epipolar_samples = arg("--samples", DecoderConfig::default().samples as u64)? as usize;
     let zocr_path = match args.iter().position(|a| a == "--zocr") {
         Some(i) => Some(PathBuf::from(
             args.get(i + 1).context("--zocr needs a path")?,
@@ -231,6 +233,7 @@ fn main() -> anyhow::Result<()> {
                 reference_demodulation: reference,
                 ..DemuxOptions::default()
             },
+            samples: epipolar_samples,
             ..DecoderConfig::default()
         };
         let mut decoder = Decoder::new(set.clone(), head, config)?;

@@ -107,6 +107,50 @@ fn both_builds_of_the_unwrapping_give_the_same_bits() {
 }
 
 #[test]
+fn fewer_epipolar_samples_where_the_chords_allow_give_the_same_orders_and_depths() {
+    let (head, truth) = scene(160, 120);
+    let set = PatternSet::seed001(DMD).unwrap();
+    let planes = high_speed_exposure(&set, &truth, 0.002, 5);
+    let decoder = |max_chord_px: f64| {
+        let config = DecoderConfig {
+            max_chord_px,
+            ..DecoderConfig::default()
+        };
+        Decoder::new(set.clone(), &head, config).unwrap()
+    };
+    // A tolerance no chord meets keeps every sample the config allows.
+    let (few, all) = (decoder(0.05), decoder(1e-12));
+    assert_eq!(all.samples(), DecoderConfig::default().samples);
+    assert!(few.samples() < all.samples(), "{} samples", few.samples());
+    let (n_few, n_all) = (few.samples(), all.samples());
+    let [a, b] = [few, all].map(|d| d.decode([&planes[0], &planes[1], &planes[2]]).unwrap());
+    let (mut both, mut only_one, mut worst_um) = (0usize, 0usize, 0.0f64);
+    for (x, y) in a.instants.iter().zip(&b.instants) {
+        for i in 0..x.depth_m.len() {
+            match (x.depth_m[i].is_finite(), y.depth_m[i].is_finite()) {
+                (true, true) => {
+                    both += 1;
+                    assert_eq!(x.absolute_phase[i], y.absolute_phase[i], "pixel {i}");
+                    let d = 1e6 * f64::from((x.depth_m[i] - y.depth_m[i]).abs());
+                    worst_um = worst_um.max(d);
+                }
+                (false, false) => {}
+                _ => only_one += 1,
+            }
+        }
+    }
+    println!(
+        "{n_few} against {n_all} samples: {both} depths in both, {only_one} in one only, largest difference {worst_um:.3} um"
+    );
+    assert!(both > 10_000, "only {both} depths to compare");
+    assert!(
+        only_one * 1000 < both,
+        "{only_one} of {both} decoded by one only"
+    );
+    assert!(worst_um < 1.0, "depths differ by up to {worst_um} um");
+}
+
+#[test]
 fn bad_exposures_are_refused_with_what_is_wrong() {
     let (head, truth) = scene(96, 72);
     let set = PatternSet::seed001(DMD).unwrap();
@@ -148,9 +192,24 @@ fn bad_exposures_are_refused_with_what_is_wrong() {
         ..DecoderConfig::default()
     };
     assert!(matches!(
-        Decoder::new(set, &head, config),
+        Decoder::new(set.clone(), &head, config),
         Err(HighSpeedError::BadConfig { .. })
     ));
+    // Sample counts and chord tolerances that are not ones.
+    for (samples, max_chord_px) in [(1, 0.05), (65, 0.05), (16, 0.0), (16, f64::NAN)] {
+        let config = DecoderConfig {
+            samples,
+            max_chord_px,
+            ..DecoderConfig::default()
+        };
+        assert!(
+            matches!(
+                Decoder::new(set.clone(), &head, config),
+                Err(HighSpeedError::BadConfig { .. })
+            ),
+            "{samples} samples within {max_chord_px} px"
+        );
+    }
 }
 
 /// `models/NAME.onnx` and its metadata copied into a scratch folder, the

@@ -19,6 +19,7 @@ use super::set::{PatternSet, SetPattern};
 use super::zocr::ZocrNet;
 use super::HighSpeedError;
 use crate::calibration::{Head, Pose, ProjectorModel};
+use crate::huge_pages::filled_vec;
 use crate::raster::Raster;
 use crate::simd::{simd_run, Simd};
 
@@ -27,8 +28,16 @@ use crate::simd::{simd_run, Simd};
 pub struct DecoderConfig {
     /// Nearest and farthest surface depth (camera z), metres: the epipolar segment.
     pub depth_range_m: (f64, f64),
-    /// Samples of each pixel's epipolar segment (evenly in inverse depth).
+    /// Most samples of each pixel's epipolar segment (evenly in inverse depth,
+    /// at most [`MAX_SAMPLES`]): the decoder takes the fewest (at least 2)
+    /// whose straight segments stay within `max_chord_px` of the DMD curve.
     pub samples: usize,
+    /// Largest distance, DMD pixels, between a segment's chord and the DMD
+    /// curve it stands for (the camera ray through the projector's lens):
+    /// at 0.05 px a pattern's predicted phase is off by at most 0.004
+    /// cycles at the shortest period here (13 px), far inside
+    /// `max_rms_cycles`, and each depth is refined on the exact curve anyway.
+    pub max_chord_px: f64,
     /// Largest RMS disagreement of a direction's three phases, cycles.
     pub max_rms_cycles: f64,
     /// Smallest modulation of a pattern, as a share of its LED's mean background
@@ -50,6 +59,7 @@ impl Default for DecoderConfig {
         Self {
             depth_range_m: (0.38, 0.66),
             samples: 16,
+            max_chord_px: 0.05,
             max_rms_cycles: 0.08,
             min_modulation_ratio: 0.25,
             saturation_level: 0.995,
@@ -59,6 +69,9 @@ impl Default for DecoderConfig {
         }
     }
 }
+
+/// The most samples of an epipolar segment ([`DecoderConfig::samples`]).
+pub const MAX_SAMPLES: usize = 64;
 
 /// One pattern's instant.
 #[derive(Clone, Debug, PartialEq)]
@@ -96,6 +109,8 @@ pub struct Decoder {
     height: usize,
     /// Per pixel, the undistorted normalised ray (x, y); NaN where undistortion fails.
     rays: Vec<[f64; 2]>,
+    /// Samples of each epipolar segment in use (see [`DecoderConfig::samples`]).
+    samples: usize,
     demux: Demultiplexer,
     /// ZOCR-Net in place of the analytic zero-order and crosstalk removal.
     zocr: Option<ZocrNet>,
@@ -110,12 +125,15 @@ impl Decoder {
         config: DecoderConfig,
     ) -> Result<Self, HighSpeedError> {
         let (near, far) = config.depth_range_m;
-        if !(near.is_finite() && far.is_finite() && near > 0.0 && far > near) || config.samples < 2
-        {
+        let range_ok = near.is_finite() && far.is_finite() && near > 0.0 && far > near;
+        let samples_ok = (2..=MAX_SAMPLES).contains(&config.samples);
+        // NaN fails this too.
+        let chord_ok = config.max_chord_px > 0.0;
+        if !(range_ok && samples_ok && chord_ok) {
             return Err(HighSpeedError::BadConfig {
                 why: format!(
-                    "depth range {near}..{far} m with {} samples: need 0 < near < far and at least 2 samples",
-                    config.samples
+                    "depth range {near}..{far} m with {} samples within {} px: need 0 < near < far, 2 to {MAX_SAMPLES} samples and a tolerance above 0",
+                    config.samples, config.max_chord_px
                 ),
             });
         }
@@ -148,6 +166,7 @@ impl Decoder {
             .collect();
         let demux = Demultiplexer::new(&set, width, height, reference, config.demux)?
             .with_simd(config.simd);
+        let samples = fewest_samples(&rays, width, &camera_to_projector, &projector, &config);
         Ok(Self {
             set,
             camera_to_projector,
@@ -155,6 +174,7 @@ impl Decoder {
             width,
             height,
             rays,
+            samples,
             demux,
             zocr: None,
             config,
@@ -196,6 +216,11 @@ impl Decoder {
     /// Image size (width, height).
     pub fn size(&self) -> (usize, usize) {
         (self.width, self.height)
+    }
+
+    /// Samples of each pixel's epipolar segment in use.
+    pub fn samples(&self) -> usize {
+        self.samples
     }
 
     /// The point at depth `z_m` on pixel `i`'s ray, in the camera frame (metres).
@@ -241,7 +266,9 @@ impl Decoder {
         // Maps 0..p: absolute phase of pattern m; p..2p: its depth. Filled in
         // bands of rows, each band's slice of every map written by one task, so
         // no per-pixel record is gathered into 48 maps afterwards.
-        let mut maps: Vec<Vec<f32>> = (0..2 * p).map(|_| vec![0.0f32; w * h]).collect();
+        // NaN where not decoded; on huge pages, filled by all cores (fresh
+        // 4 KiB pages cost as many faults as there are 4 KiB in 250 MB).
+        let mut maps: Vec<Vec<f32>> = (0..2 * p).map(|_| filled_vec(w * h, f32::NAN)).collect();
         const BAND_ROWS: usize = 4;
         let mut bands: Vec<Vec<&mut [f32]>> = (0..h.div_ceil(BAND_ROWS))
             .map(|_| Vec::with_capacity(2 * p))
@@ -256,14 +283,25 @@ impl Decoder {
         let simd = self.config.simd;
         bands.into_par_iter().enumerate().for_each(|(b, mut out)| {
             simd_run!(simd, {
-                for o in out.iter_mut() {
-                    o.fill(f32::NAN);
-                }
+                // One scratch per band: filling it per pixel (or per
+                // direction) cost more than the unwrapping itself.
+                let mut scratch = ChunkScratch {
+                    dmd: vec![[f64::NAN; 2]; CHUNK * self.samples],
+                    along: [Vector3::zeros(); CHUNK],
+                    phases: [[f64::NAN; MAX_SAMPLES]; 3],
+                };
                 let first = b * BAND_ROWS * w;
-                for at in 0..out[0].len() {
-                    if !saturated_px[first + at] {
-                        self.decode_pixel(first + at, &fringes, &mut out, at);
-                    }
+                let len = out[0].len();
+                for start in (0..len).step_by(CHUNK) {
+                    let chunk = start..(start + CHUNK).min(len);
+                    self.decode_chunk(
+                        first,
+                        chunk,
+                        &saturated_px,
+                        &fringes,
+                        &mut out,
+                        &mut scratch,
+                    );
                 }
             })
         });
@@ -289,76 +327,110 @@ impl Decoder {
         })
     }
 
-    /// Pixel `i`: per pattern `m` its absolute phase into `out[m][at]` and its
-    /// depth into `out[p + m][at]` (p patterns); untouched where not decoded.
+    /// The pixels `first + chunk`: per pattern `m` its absolute phase into
+    /// `out[m][at]` and its depth into `out[p + m][at]` (p patterns, `at` in
+    /// `chunk`); untouched where not decoded. Direction by direction over the
+    /// chunk, not pixel by pixel: a pixel's directions read 51 maps and write
+    /// 48, more streams than the caches follow, a direction's only 15.
     #[inline(always)]
-    fn decode_pixel(&self, i: usize, fringes: &Demultiplexed, out: &mut [&mut [f32]], at: usize) {
-        let ray = self.rays[i];
-        if !ray[0].is_finite() {
-            return;
-        }
-        let (near, far) = self.config.depth_range_m;
-        let (s0, s1) = (1.0 / far, 1.0 / near);
-        let mut dmd = [[f64::NAN; 2]; 64];
-        let j_count = self.config.samples.min(dmd.len());
-        let ds = (s1 - s0) / (j_count - 1) as f64;
-        let along = ray_in_projector(&self.camera_to_projector, &ray);
-        for (j, d) in dmd.iter_mut().enumerate().take(j_count) {
-            if let Some(p) = dmd_on_ray(
-                &self.camera_to_projector,
-                &self.projector,
-                &along,
-                s0 + j as f64 * ds,
-            ) {
-                *d = p;
+    fn decode_chunk(
+        &self,
+        first: usize,
+        chunk: std::ops::Range<usize>,
+        saturated: &[bool],
+        fringes: &Demultiplexed,
+        out: &mut [&mut [f32]],
+        scratch: &mut ChunkScratch,
+    ) {
+        let (s0, ds) = self.segment_steps();
+        let j_count = self.samples;
+        let ChunkScratch {
+            dmd,
+            along,
+            phases: buffers,
+        } = scratch;
+        // Each pixel's samples on the DMD; a NaN first sample marks a pixel
+        // that is not decoded (saturated, or no ray).
+        for (k, at) in chunk.clone().enumerate() {
+            let i = first + at;
+            let ray = self.rays[i];
+            let samples = &mut dmd[k * j_count..(k + 1) * j_count];
+            if saturated[i] || !ray[0].is_finite() {
+                samples[0] = [f64::NAN; 2];
+                along[k] = Vector3::from_element(f64::NAN);
+                continue;
+            }
+            along[k] = ray_in_projector(&self.camera_to_projector, &ray);
+            for (j, d) in samples.iter_mut().enumerate() {
+                *d = dmd_on_ray(
+                    &self.camera_to_projector,
+                    &self.projector,
+                    &along[k],
+                    s0 + j as f64 * ds,
+                )
+                .unwrap_or([f64::NAN; 2]);
             }
         }
-        let dmd = &dmd[..j_count];
         let directions = self.set.directions();
         let p = self.set.patterns().len();
         for n in 1..=directions as u32 {
             let pats = [0, 1, 2].map(|c| self.set.pattern(n, c));
-            let mut wrapped = [0.0f64; 3];
-            let mut good = true;
-            for (c, pat) in pats.iter().enumerate() {
-                let m = pat.index;
-                let zero = fringes.zero_order[c][i] / directions as f32;
-                let modulation = fringes.modulation[m][i];
-                good &= zero > 0.0 && modulation >= self.config.min_modulation_ratio * zero;
-                wrapped[c] = f64::from(fringes.wrapped[m][i]) / std::f64::consts::TAU;
-            }
-            if !good {
-                continue;
-            }
-            // On the stack: this runs for 8 directions of every pixel.
-            let mut buffers = [[f64::NAN; 64]; 3];
-            for (buffer, pat) in buffers.iter_mut().zip(&pats) {
-                for (b, p) in buffer.iter_mut().zip(dmd) {
-                    *b = pat.frequency[0] * p[0] + pat.frequency[1] * p[1];
+            for (k, at) in chunk.clone().enumerate() {
+                if !along[k].x.is_finite() {
+                    continue;
                 }
-            }
-            let phases = [
-                &buffers[0][..j_count],
-                &buffers[1][..j_count],
-                &buffers[2][..j_count],
-            ];
-            let Some((j, tau, rms)) = pdm_along(&phases, &wrapped) else {
-                continue;
-            };
-            if rms > self.config.max_rms_cycles {
-                continue;
-            }
-            for (c, pat) in pats.iter().enumerate() {
-                let ph = phases[c];
-                let predicted = ph[j] + tau * (ph[j + 1] - ph[j]);
-                let absolute = wrapped[c] + (predicted - wrapped[c]).round();
-                let Some(s) = self.solve_depth(pat, ph, dmd, absolute, &along, j, s0, ds) else {
+                let i = first + at;
+                let dmd = &dmd[k * j_count..(k + 1) * j_count];
+                let mut wrapped = [0.0f64; 3];
+                let mut good = true;
+                for (c, pat) in pats.iter().enumerate() {
+                    let m = pat.index;
+                    let zero = fringes.zero_order[c][i] / directions as f32;
+                    let modulation = fringes.modulation[m][i];
+                    good &= zero > 0.0 && modulation >= self.config.min_modulation_ratio * zero;
+                    wrapped[c] = f64::from(fringes.wrapped[m][i]) / std::f64::consts::TAU;
+                }
+                if !good {
+                    continue;
+                }
+                for (buffer, pat) in buffers.iter_mut().zip(&pats) {
+                    for (b, p) in buffer[..j_count].iter_mut().zip(dmd) {
+                        *b = pat.frequency[0] * p[0] + pat.frequency[1] * p[1];
+                    }
+                }
+                let phases = [
+                    &buffers[0][..j_count],
+                    &buffers[1][..j_count],
+                    &buffers[2][..j_count],
+                ];
+                let Some((j, tau, rms)) = pdm_along(&phases, &wrapped) else {
                     continue;
                 };
-                out[pat.index][at] = (std::f64::consts::TAU * absolute) as f32;
-                out[p + pat.index][at] = (1.0 / s) as f32;
+                if rms > self.config.max_rms_cycles {
+                    continue;
+                }
+                for (c, pat) in pats.iter().enumerate() {
+                    let ph = phases[c];
+                    let predicted = ph[j] + tau * (ph[j + 1] - ph[j]);
+                    let absolute = wrapped[c] + (predicted - wrapped[c]).round();
+                    let Some(s) = self.solve_depth(pat, ph, dmd, absolute, &along[k], j, s0, ds)
+                    else {
+                        continue;
+                    };
+                    out[pat.index][at] = (std::f64::consts::TAU * absolute) as f32;
+                    out[p + pat.index][at] = (1.0 / s) as f32;
+                }
             }
         }
+    }
+
+    /// The first sample's inverse depth (1 / the farthest depth) and the step
+    /// between samples.
+    #[inline(always)]
+    fn segment_steps(&self) -> (f64, f64) {
+        let (near, far) = self.config.depth_range_m;
+        let (s0, s1) = (1.0 / far, 1.0 / near);
+        (s0, (s1 - s0) / (self.samples - 1) as f64)
     }
 
     /// The inverse depth where `pat`'s phase along the ray is `absolute` cycles:
@@ -386,10 +458,11 @@ impl Decoder {
         };
         let segments = ph.len() - 1;
         let j = (0..segments).find_map(|d| {
-            [near.checked_sub(d), Some(near + d)]
-                .into_iter()
-                .flatten()
-                .find(|&j| j < segments && brackets(j))
+            if d <= near && brackets(near - d) {
+                Some(near - d)
+            } else {
+                (near + d < segments && brackets(near + d)).then_some(near + d)
+            }
         })?;
         let slope = (ph[j + 1] - ph[j]) / ds;
         let tau = (absolute - ph[j]) / (ph[j + 1] - ph[j]);
@@ -403,6 +476,62 @@ impl Decoder {
         let inside = u >= -0.5 && v >= -0.5 && u < w as f64 - 0.5 && v < h as f64 - 0.5;
         (inside && s > 0.0).then_some(s)
     }
+}
+
+/// Pixels decoded together by [`Decoder::decode_chunk`].
+const CHUNK: usize = 64;
+
+/// One band's scratch for [`Decoder::decode_chunk`]: a chunk's pixels' rays in
+/// the projector frame and their samples' DMD points (pixel-major), and one
+/// direction's three phases at one pixel's samples.
+struct ChunkScratch {
+    dmd: Vec<[f64; 2]>,
+    along: [Vector3<f64>; CHUNK],
+    phases: [[f64; MAX_SAMPLES]; 3],
+}
+
+/// The fewest samples (2 to `config.samples`) whose segments' chords stay
+/// within `config.max_chord_px` of the DMD curve, judged at the segments'
+/// middles on a grid of pixels (every 16th row and column): the curve is a
+/// projective line bent by the projector's distortion, so its chords are
+/// farthest from it there.
+fn fewest_samples(
+    rays: &[[f64; 2]],
+    width: usize,
+    camera_to_projector: &Pose,
+    projector: &ProjectorModel,
+    config: &DecoderConfig,
+) -> usize {
+    let (near, far) = config.depth_range_m;
+    let (s0, s1) = (1.0 / far, 1.0 / near);
+    let grid: Vec<Vector3<f64>> = rays
+        .iter()
+        .enumerate()
+        .filter(|(i, r)| {
+            (i % width).is_multiple_of(16) && (i / width).is_multiple_of(16) && r[0].is_finite()
+        })
+        .map(|(_, r)| ray_in_projector(camera_to_projector, r))
+        .collect();
+    let at = |along: &Vector3<f64>, s: f64| dmd_on_ray(camera_to_projector, projector, along, s);
+    let within = |n: usize| {
+        let ds = (s1 - s0) / (n - 1) as f64;
+        grid.par_iter().all(|along| {
+            (0..n - 1).all(|j| {
+                let s = s0 + j as f64 * ds;
+                match (at(along, s), at(along, s + ds), at(along, s + 0.5 * ds)) {
+                    (Some(a), Some(b), Some(m)) => {
+                        let chord = [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
+                        (chord[0] - m[0]).hypot(chord[1] - m[1]) <= config.max_chord_px
+                    }
+                    // Behind the projector: nothing to decode there either.
+                    _ => true,
+                }
+            })
+        })
+    };
+    (2..config.samples)
+        .find(|&n| within(n))
+        .unwrap_or(config.samples)
 }
 
 /// PDM along one pixel's epipolar samples: `phases[c][j]` is colour `c`'s phase

@@ -22,6 +22,7 @@ use rustfft::num_complex::Complex32;
 use super::set::PatternSet;
 use super::HighSpeedError;
 use crate::fft2::Fft2;
+use crate::huge_pages::filled_vec;
 use crate::phase::{fast_atan2, fast_sin_cos, wrap_pi};
 use crate::simd::{simd_run, Simd};
 
@@ -195,9 +196,13 @@ impl Demultiplexer {
     /// Step 3: every pattern demodulated out of its LED's fringes, however
     /// steps 1 and 2 were done (by formula or by ZOCR-Net).
     pub fn demodulate_all(&self, cleaned: ZeroOrderRemoved) -> Demultiplexed {
+        let n = self.fft.size().0 * self.fft.size().1;
         let (wrapped, modulation): (Vec<_>, Vec<_>) = (0..self.windows.len())
             .into_par_iter()
-            .map(|m| self.demodulate(&cleaned.fringes[self.colours[m]], m))
+            .map_init(
+                || DemodScratch::new(n),
+                |scratch, m| self.demodulate(&cleaned.fringes[self.colours[m]], m, scratch),
+            )
             .unzip();
         Demultiplexed {
             wrapped,
@@ -210,19 +215,44 @@ impl Demultiplexer {
     fn low_band(&self, signal: &[f32], sigma: f32) -> Vec<f32> {
         let mut image: Vec<Complex32> = signal.iter().map(|&v| Complex32::new(v, 0.0)).collect();
         let mut spectrum = vec![Complex32::default(); image.len()];
-        self.fft.forward(&mut image, &mut spectrum);
+        let max_kx = self.band_columns(sigma, sigma, [1.0, 0.0]);
+        self.fft.forward_band(&mut image, &mut spectrum, max_kx);
         let k = -0.5 / (sigma * sigma);
-        self.apply_gaussian(&mut spectrum, |fx, fy| k * (fx * fx + fy * fy));
-        self.fft.inverse(&mut spectrum, &mut image);
+        self.apply_gaussian(&mut spectrum, max_kx, |fx, fy| k * (fx * fx + fy * fy));
+        self.fft.inverse_band(&mut spectrum, &mut image, max_kx);
         image.iter().map(|z| z.re).collect()
     }
 
-    /// Multiplies the (transposed) spectrum by `exp(exponent(fx, fy))`. Bins
+    /// The half-width, in columns, of the band where a Gaussian window at DC
+    /// (standard deviations `along` the unit direction `axis` and `across`
+    /// it) is above [`EXP_UNDERFLOW`]: the window's ellipse at that level
+    /// reaches `|fx| = sqrt(2 E (along^2 ax^2 + across^2 ay^2))`. One column
+    /// of margin for rounding; outside the band every bin would be set to
+    /// zero, so its column transforms are skipped (about four in five here).
+    fn band_columns(&self, along: f32, across: f32, axis: [f32; 2]) -> usize {
+        let w = self.fft.size().0;
+        let e = -EXP_UNDERFLOW;
+        let reach =
+            (2.0 * e * (along * along * axis[0] * axis[0] + across * across * axis[1] * axis[1]))
+                .sqrt();
+        (reach * w as f32).ceil() as usize + 1
+    }
+
+    /// Multiplies the (transposed) spectrum by `exp(exponent(fx, fy))` in the
+    /// columns `|kx| <= max_kx` (the others are zero already). Bins
     /// where that underflows ([`EXP_UNDERFLOW`]) are set to zero without
     /// calling `exp`: the windows are narrow, so most of the spectrum is such bins.
-    fn apply_gaussian(&self, spectrum: &mut [Complex32], exponent: impl Fn(f32, f32) -> f32) {
+    fn apply_gaussian(
+        &self,
+        spectrum: &mut [Complex32],
+        max_kx: usize,
+        exponent: impl Fn(f32, f32) -> f32,
+    ) {
         let (w, h) = self.fft.size();
         for (kx, column) in spectrum.chunks_mut(h).enumerate() {
+            if kx.min(w - kx) > max_kx {
+                continue;
+            }
             let fx = Fft2::frequency(kx, w);
             for (ky, z) in column.iter_mut().enumerate() {
                 let e = exponent(fx, Fft2::frequency(ky, h));
@@ -236,41 +266,49 @@ impl Demultiplexer {
     }
 
     /// Pattern `m` out of its LED's signal: (wrapped phase, modulation).
-    fn demodulate(&self, signal: &[f32], m: usize) -> (Vec<f32>, Vec<f32>) {
+    fn demodulate(
+        &self,
+        signal: &[f32],
+        m: usize,
+        scratch: &mut DemodScratch,
+    ) -> (Vec<f32>, Vec<f32>) {
         let (w, h) = self.fft.size();
-        let carrier = self.carrier_phase(m);
-        let mut image = vec![Complex32::default(); w * h];
-        simd_run!(self.simd, shift_to_baseband(signal, &carrier, &mut image));
-        let mut spectrum = vec![Complex32::default(); w * h];
-        self.fft.forward(&mut image, &mut spectrum);
+        let DemodScratch {
+            carrier,
+            image,
+            spectrum,
+        } = scratch;
+        self.carrier_phase(m, carrier);
+        simd_run!(self.simd, shift_to_baseband(signal, carrier, image));
         let win = &self.windows[m];
         let n = win.carrier[0].hypot(win.carrier[1]).max(f32::EPSILON);
         let (ax, ay) = (win.carrier[0] / n, win.carrier[1] / n);
+        let max_kx = self.band_columns(win.sigma_along, win.sigma_across, [ax, ay]);
+        self.fft.forward_band(image, spectrum, max_kx);
         let (ka, kc) = (
             -0.5 / (win.sigma_along * win.sigma_along),
             -0.5 / (win.sigma_across * win.sigma_across),
         );
-        self.apply_gaussian(&mut spectrum, |fx, fy| {
+        self.apply_gaussian(spectrum, max_kx, |fx, fy| {
             let along = fx * ax + fy * ay;
             let across = -fx * ay + fy * ax;
             ka * along * along + kc * across * across
         });
-        self.fft.inverse(&mut spectrum, &mut image);
-        let mut phase = vec![0.0; w * h];
-        let mut modulation = vec![0.0; w * h];
+        self.fft.inverse_band(spectrum, image, max_kx);
+        let mut phase = filled_vec(w * h, 0.0);
+        let mut modulation = filled_vec(w * h, 0.0);
         simd_run!(
             self.simd,
-            phase_and_modulation(&image, &carrier, &mut phase, &mut modulation)
+            phase_and_modulation(image, carrier, &mut phase, &mut modulation)
         );
         (phase, modulation)
     }
 
-    /// Pattern `m`'s carrier phase at every pixel (radians in [0, 2 pi); NaN
-    /// where the reference is unknown).
-    fn carrier_phase(&self, m: usize) -> Vec<f32> {
+    /// Pattern `m`'s carrier phase at every pixel into `out` (radians in
+    /// [0, 2 pi); NaN where the reference is unknown).
+    fn carrier_phase(&self, m: usize, out: &mut [f32]) {
         let g = self.frequencies[m];
-        let (w, h) = self.fft.size();
-        let mut out = vec![0.0f32; w * h];
+        let w = self.fft.size().0;
         if self.options.reference_demodulation {
             simd_run!(self.simd, {
                 for (o, p) in out.iter_mut().zip(&self.reference_dmd) {
@@ -286,7 +324,25 @@ impl Demultiplexer {
                 );
             }
         }
-        out
+    }
+}
+
+/// One worker's buffers for [`Demultiplexer::demodulate`], reused from
+/// pattern to pattern: fresh ones cost ~25 MB of page faults per pattern at
+/// 1280x1024.
+struct DemodScratch {
+    carrier: Vec<f32>,
+    image: Vec<Complex32>,
+    spectrum: Vec<Complex32>,
+}
+
+impl DemodScratch {
+    fn new(len: usize) -> Self {
+        Self {
+            carrier: filled_vec(len, 0.0),
+            image: filled_vec(len, Complex32::default()),
+            spectrum: filled_vec(len, Complex32::default()),
+        }
     }
 }
 

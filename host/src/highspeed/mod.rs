@@ -21,7 +21,7 @@ pub mod set;
 pub mod zocr;
 
 pub use crosstalk::crosstalk_from_flats;
-pub use decode::{pdm_along, Decoded, Decoder, DecoderConfig, InstantMap};
+pub use decode::{pdm_along, Decoded, Decoder, DecoderConfig, InstantMap, MAX_SAMPLES};
 pub use demux::{Demultiplexed, Demultiplexer, DemuxOptions, Window, ZeroOrderRemoved};
 pub use set::{PatternSet, SetPattern};
 pub use zocr::ZocrNet;
