@@ -615,3 +615,64 @@ fn dmd_on_ray(
     let p = projector.normalised_to_pixel(d.x / d.z, d.y / d.z);
     Some([p.x, p.y])
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::Distortion;
+    use crate::synth::high_speed::high_speed_head;
+
+    #[test]
+    fn the_depth_step_lands_within_a_micrometre_of_the_exact_depth() {
+        let dmd_px = (1280, 800);
+        let lens = Distortion {
+            k1: -0.2,
+            k2: 0.05,
+            p1: 0.001,
+            p2: -0.001,
+            k3: 0.0,
+        };
+        for distortion in [Distortion::none(), lens] {
+            let mut head = high_speed_head(320, 240, dmd_px);
+            head.projector.distortion = distortion;
+            let set = PatternSet::seed001(dmd_px).unwrap();
+            let decoder = Decoder::new(set, &head, DecoderConfig::default()).unwrap();
+            let (c2p, projector) = (&decoder.camera_to_projector, &decoder.projector);
+            let (s0, ds) = decoder.segment_steps();
+            let (mut worst_um, mut solved) = (0.0f64, 0usize);
+            for i in (0..decoder.rays.len()).step_by(97) {
+                let along = ray_in_projector(c2p, &decoder.rays[i]);
+                let dmd: Vec<[f64; 2]> = (0..decoder.samples())
+                    .map(|j| dmd_on_ray(c2p, projector, &along, s0 + j as f64 * ds).unwrap())
+                    .collect();
+                for pat in decoder.set.patterns() {
+                    let g = pat.frequency;
+                    let ph: Vec<f64> = dmd.iter().map(|p| g[0] * p[0] + g[1] * p[1]).collect();
+                    for z in [0.4, 0.47, 0.5, 0.55, 0.61, 0.65] {
+                        // The surface at depth z gives this absolute phase; PDM
+                        // puts the pixel in its segment or the next one.
+                        let p = dmd_on_ray(c2p, projector, &along, 1.0 / z).unwrap();
+                        let absolute = g[0] * p[0] + g[1] * p[1];
+                        let segment = ((1.0 / z - s0) / ds) as usize;
+                        for near in [segment.saturating_sub(1), segment, segment + 1] {
+                            let near = near.min(ph.len() - 2);
+                            let Some(s) =
+                                decoder.solve_depth(pat, &ph, &dmd, absolute, &along, near, s0, ds)
+                            else {
+                                continue;
+                            };
+                            solved += 1;
+                            worst_um = worst_um.max(1e6 * (1.0 / s - z).abs());
+                        }
+                    }
+                }
+            }
+            println!(
+                "{distortion:?}: {} samples, {solved} depths, largest error {worst_um:.4} um",
+                decoder.samples()
+            );
+            assert!(solved > 10_000, "only {solved} depths on the DMD");
+            assert!(worst_um < 1.0, "depth off by up to {worst_um} um");
+        }
+    }
+}
