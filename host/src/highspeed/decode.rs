@@ -423,13 +423,10 @@ impl Decoder {
         }
     }
 
-    /// The first sample's inverse depth (1 / the farthest depth) and the step
-    /// between samples.
+    /// The first sample's inverse depth and the step between samples.
     #[inline(always)]
     fn segment_steps(&self) -> (f64, f64) {
-        let (near, far) = self.config.depth_range_m;
-        let (s0, s1) = (1.0 / far, 1.0 / near);
-        (s0, (s1 - s0) / (self.samples - 1) as f64)
+        segment_steps(self.config.depth_range_m, self.samples)
     }
 
     /// The inverse depth where `pat`'s phase along the ray is `absolute` cycles:
@@ -489,6 +486,15 @@ struct ChunkScratch {
     phases: [[f64; MAX_SAMPLES]; 3],
 }
 
+/// `samples` points evenly in inverse depth over `depth_range_m` (near, far):
+/// the first one's inverse depth (1 / far) and the step between them.
+#[inline(always)]
+fn segment_steps(depth_range_m: (f64, f64), samples: usize) -> (f64, f64) {
+    let (near, far) = depth_range_m;
+    let (s0, s1) = (1.0 / far, 1.0 / near);
+    (s0, (s1 - s0) / (samples - 1) as f64)
+}
+
 /// The fewest samples (2 to `config.samples`) whose segments' chords stay
 /// within `config.max_chord_px` of the DMD curve, judged at the segments'
 /// middles on a grid of pixels (every 16th row and column): the curve is a
@@ -501,8 +507,6 @@ fn fewest_samples(
     projector: &ProjectorModel,
     config: &DecoderConfig,
 ) -> usize {
-    let (near, far) = config.depth_range_m;
-    let (s0, s1) = (1.0 / far, 1.0 / near);
     let grid: Vec<Vector3<f64>> = rays
         .iter()
         .enumerate()
@@ -513,7 +517,7 @@ fn fewest_samples(
         .collect();
     let at = |along: &Vector3<f64>, s: f64| dmd_on_ray(camera_to_projector, projector, along, s);
     let within = |n: usize| {
-        let ds = (s1 - s0) / (n - 1) as f64;
+        let (s0, ds) = segment_steps(config.depth_range_m, n);
         grid.par_iter().all(|along| {
             (0..n - 1).all(|j| {
                 let s = s0 + j as f64 * ds;

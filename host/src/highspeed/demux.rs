@@ -215,7 +215,7 @@ impl Demultiplexer {
     fn low_band(&self, signal: &[f32], sigma: f32) -> Vec<f32> {
         let mut image: Vec<Complex32> = signal.iter().map(|&v| Complex32::new(v, 0.0)).collect();
         let mut spectrum = vec![Complex32::default(); image.len()];
-        let max_kx = self.band_columns(sigma, sigma, [1.0, 0.0]);
+        let max_kx = self.window_reach_columns(sigma, sigma, [1.0, 0.0]);
         self.fft.forward_band(&mut image, &mut spectrum, max_kx);
         let k = -0.5 / (sigma * sigma);
         self.apply_gaussian(&mut spectrum, max_kx, |fx, fy| k * (fx * fx + fy * fy));
@@ -229,7 +229,7 @@ impl Demultiplexer {
     /// reaches `|fx| = sqrt(2 E (along^2 ax^2 + across^2 ay^2))`. One column
     /// of margin for rounding; outside the band every bin would be set to
     /// zero, so its column transforms are skipped (about four in five here).
-    fn band_columns(&self, along: f32, across: f32, axis: [f32; 2]) -> usize {
+    fn window_reach_columns(&self, along: f32, across: f32, axis: [f32; 2]) -> usize {
         let w = self.fft.size().0;
         let e = -EXP_UNDERFLOW;
         let reach =
@@ -283,7 +283,7 @@ impl Demultiplexer {
         let win = &self.windows[m];
         let n = win.carrier[0].hypot(win.carrier[1]).max(f32::EPSILON);
         let (ax, ay) = (win.carrier[0] / n, win.carrier[1] / n);
-        let max_kx = self.band_columns(win.sigma_along, win.sigma_across, [ax, ay]);
+        let max_kx = self.window_reach_columns(win.sigma_along, win.sigma_across, [ax, ay]);
         self.fft.forward_band(image, spectrum, max_kx);
         let (ka, kc) = (
             -0.5 / (win.sigma_along * win.sigma_along),
