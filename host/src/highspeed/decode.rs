@@ -289,6 +289,7 @@ impl Decoder {
                     dmd: vec![[f64::NAN; 2]; CHUNK * self.samples],
                     along: [Vector3::zeros(); CHUNK],
                     phases: [[f64::NAN; MAX_SAMPLES]; 3],
+                    newton: [[NewtonStep::NONE; CHUNK]; 3],
                 };
                 let first = b * BAND_ROWS * w;
                 let len = out[0].len();
@@ -348,6 +349,7 @@ impl Decoder {
             dmd,
             along,
             phases: buffers,
+            newton,
         } = scratch;
         // Each pixel's samples on the DMD; a NaN ray marks a pixel that is
         // not decoded (saturated, or no ray).
@@ -361,19 +363,17 @@ impl Decoder {
             let samples = &mut dmd[k * j_count..(k + 1) * j_count];
             along[k] = ray_in_projector(&self.camera_to_projector, &ray);
             for (j, d) in samples.iter_mut().enumerate() {
-                *d = dmd_on_ray(
-                    &self.camera_to_projector,
-                    &self.projector,
-                    &along[k],
-                    s0 + j as f64 * ds,
-                )
-                .unwrap_or([f64::NAN; 2]);
+                let s = s0 + j as f64 * ds;
+                *d = dmd_on_ray_or_nan(&self.camera_to_projector, &self.projector, &along[k], s);
             }
         }
         let directions = self.set.directions();
         let p = self.set.patterns().len();
         for n in 1..=directions as u32 {
             let pats = [0, 1, 2].map(|c| self.set.pattern(n, c));
+            for steps in newton.iter_mut() {
+                steps.fill(NewtonStep::NONE);
+            }
             for (k, at) in chunk.clone().enumerate() {
                 if !along[k].x.is_finite() {
                     continue;
@@ -408,16 +408,37 @@ impl Decoder {
                 if rms > self.config.max_rms_cycles {
                     continue;
                 }
-                for (c, pat) in pats.iter().enumerate() {
-                    let ph = phases[c];
+                for (c, ph) in phases.iter().enumerate() {
                     let predicted = ph[j] + tau * (ph[j + 1] - ph[j]);
                     let absolute = wrapped[c] + (predicted - wrapped[c]).round();
-                    let Some(s) = self.solve_depth(pat, ph, dmd, absolute, &along[k], j, s0, ds)
-                    else {
-                        continue;
+                    if let Some(step) = self.depth_step(ph, dmd, absolute, j, s0, ds) {
+                        newton[c][k] = step;
+                    }
+                }
+            }
+            // The Newton steps of the chunk's pixels, colour by colour: one
+            // projection each, in a loop without branches over the pixels
+            // (vector lanes); a pixel without a step gets NaN, which its maps
+            // already hold.
+            let at0 = chunk.start;
+            for (steps, pat) in newton.iter().zip(&pats) {
+                let f = pat.frequency;
+                let n = chunk.len();
+                let (phase_out, depth_out) = out_pair(out, pat.index, p + pat.index);
+                let lanes = phase_out[at0..at0 + n]
+                    .iter_mut()
+                    .zip(&mut depth_out[at0..at0 + n])
+                    .zip(steps[..n].iter().zip(&along[..n]));
+                for ((phase, depth), (step, along)) in lanes {
+                    let s = step.solve(&self.camera_to_projector, &self.projector, along, f);
+                    // NaN (no step, or behind the projector) fails this too.
+                    let ok = s > 0.0;
+                    *phase = if ok {
+                        (std::f64::consts::TAU * step.absolute) as f32
+                    } else {
+                        f32::NAN
                     };
-                    out[pat.index][at] = (std::f64::consts::TAU * absolute) as f32;
-                    out[p + pat.index][at] = (1.0 / s) as f32;
+                    *depth = if ok { (1.0 / s) as f32 } else { f32::NAN };
                 }
             }
         }
@@ -429,25 +450,22 @@ impl Decoder {
         segment_steps(self.config.depth_range_m, self.samples)
     }
 
-    /// The inverse depth where `pat`'s phase along the ray is `absolute` cycles:
-    /// the samples' segment that brackets it, searched outward from segment
-    /// `near` (where PDM put the pixel: the bracket is there or next to it),
-    /// then one Newton step on the exact projection. `None` off the segment or
-    /// the DMD (judged on the segment's DMD points, a fraction of a pixel from
-    /// exact).
-    #[allow(clippy::too_many_arguments)]
+    /// Where the Newton step toward the inverse depth at which a pattern's phase
+    /// along the ray is `absolute` cycles starts: the samples' segment that
+    /// brackets it, searched outward from segment `near` (where PDM put the
+    /// pixel: the bracket is there or next to it), and the point on its chord.
+    /// `None` off the segment or the DMD (judged on the segment's DMD points, a
+    /// fraction of a pixel from exact).
     #[inline(always)]
-    fn solve_depth(
+    fn depth_step(
         &self,
-        pat: &SetPattern,
         ph: &[f64],
         dmd: &[[f64; 2]],
         absolute: f64,
-        along: &Vector3<f64>,
         near: usize,
         s0: f64,
         ds: f64,
-    ) -> Option<f64> {
+    ) -> Option<NewtonStep> {
         let brackets = |j: usize| {
             let (a, b) = (ph[j], ph[j + 1]);
             a.is_finite() && b.is_finite() && (a - absolute) * (b - absolute) <= 0.0 && a != b
@@ -462,16 +480,55 @@ impl Decoder {
         })?;
         let slope = (ph[j + 1] - ph[j]) / ds;
         let tau = (absolute - ph[j]) / (ph[j + 1] - ph[j]);
-        let mut s = s0 + j as f64 * ds + tau * ds;
-        let p = dmd_on_ray(&self.camera_to_projector, &self.projector, along, s)?;
-        s -= (pat.frequency[0] * p[0] + pat.frequency[1] * p[1] - absolute) / slope;
+        let s = s0 + j as f64 * ds + tau * ds;
         let (w, h) = self.set.dmd_px();
         let (a, b) = (dmd[j], dmd[j + 1]);
         let u = a[0] + tau * (b[0] - a[0]);
         let v = a[1] + tau * (b[1] - a[1]);
         let inside = u >= -0.5 && v >= -0.5 && u < w as f64 - 0.5 && v < h as f64 - 0.5;
-        (inside && s > 0.0).then_some(s)
+        inside.then_some(NewtonStep { s, slope, absolute })
     }
+}
+
+/// One pattern's depth at one pixel before its Newton step: the inverse depth
+/// on the chord, the phase's slope there (cycles per unit inverse depth) and
+/// the absolute phase (cycles) it solves for; `s` NaN where there is none.
+#[derive(Clone, Copy)]
+struct NewtonStep {
+    s: f64,
+    slope: f64,
+    absolute: f64,
+}
+
+impl NewtonStep {
+    const NONE: NewtonStep = NewtonStep {
+        s: f64::NAN,
+        slope: f64::NAN,
+        absolute: f64::NAN,
+    };
+
+    /// The inverse depth after one Newton step on the exact projection of the
+    /// ray `along` ([`ray_in_projector`]) for a pattern of spatial `frequency`;
+    /// NaN without a step or behind the projector. No branch: the decoder runs
+    /// it over a chunk's pixels in vector lanes.
+    #[inline(always)]
+    fn solve(
+        &self,
+        camera_to_projector: &Pose,
+        projector: &ProjectorModel,
+        along: &Vector3<f64>,
+        frequency: [f64; 2],
+    ) -> f64 {
+        let q = dmd_on_ray_or_nan(camera_to_projector, projector, along, self.s);
+        self.s - (frequency[0] * q[0] + frequency[1] * q[1] - self.absolute) / self.slope
+    }
+}
+
+/// Two distinct maps of `out` at once (`a != b`).
+fn out_pair<'a>(out: &'a mut [&mut [f32]], a: usize, b: usize) -> (&'a mut [f32], &'a mut [f32]) {
+    debug_assert!(a < b);
+    let (low, high) = out.split_at_mut(b);
+    (&mut *low[a], &mut *high[0])
 }
 
 /// Pixels decoded together by [`Decoder::decode_chunk`].
@@ -484,6 +541,7 @@ struct ChunkScratch {
     dmd: Vec<[f64; 2]>,
     along: [Vector3<f64>; CHUNK],
     phases: [[f64; MAX_SAMPLES]; 3],
+    newton: [[NewtonStep; CHUNK]; 3],
 }
 
 /// `samples` points evenly in inverse depth over `depth_range_m` (near, far):
@@ -602,6 +660,24 @@ fn ray_in_projector(camera_to_projector: &Pose, ray: &[f64; 2]) -> Vector3<f64> 
     camera_to_projector.rotation * Vector3::new(ray[0], ray[1], 1.0)
 }
 
+/// [`dmd_on_ray`] without a branch, for loops over many points (vector lanes):
+/// NaN behind the projector.
+#[inline(always)]
+fn dmd_on_ray_or_nan(
+    camera_to_projector: &Pose,
+    projector: &ProjectorModel,
+    along: &Vector3<f64>,
+    s: f64,
+) -> [f64; 2] {
+    let d = along + camera_to_projector.translation_m * s;
+    let p = projector.normalised_to_pixel(d.x / d.z, d.y / d.z);
+    if d.z > 0.0 {
+        [p.x, p.y]
+    } else {
+        [f64::NAN; 2]
+    }
+}
+
 /// The DMD pixel (u, v) that lights the point at inverse depth `s` (1 / camera
 /// z) on the ray `along` ([`ray_in_projector`]); `None` behind the projector.
 #[inline(always)]
@@ -660,11 +736,15 @@ mod tests {
                         let segment = ((1.0 / z - s0) / ds) as usize;
                         for near in [segment.saturating_sub(1), segment, segment + 1] {
                             let near = near.min(ph.len() - 2);
-                            let Some(s) =
-                                decoder.solve_depth(pat, &ph, &dmd, absolute, &along, near, s0, ds)
+                            let Some(step) = decoder.depth_step(&ph, &dmd, absolute, near, s0, ds)
                             else {
                                 continue;
                             };
+                            let s = step.solve(c2p, projector, &along, g);
+                            // What the decoder keeps (NaN fails it too).
+                            if s.is_nan() || s <= 0.0 {
+                                continue;
+                            }
                             solved += 1;
                             worst_um = worst_um.max(1e6 * (1.0 / s - z).abs());
                         }
