@@ -524,7 +524,7 @@ impl NewtonStep {
     }
 }
 
-/// Two distinct maps of `out` at once (`a != b`).
+/// Maps `a` and `b` of `out` at once (`a < b`).
 fn out_pair<'a>(out: &'a mut [&mut [f32]], a: usize, b: usize) -> (&'a mut [f32], &'a mut [f32]) {
     debug_assert!(a < b);
     let (low, high) = out.split_at_mut(b);
@@ -660,8 +660,9 @@ fn ray_in_projector(camera_to_projector: &Pose, ray: &[f64; 2]) -> Vector3<f64> 
     camera_to_projector.rotation * Vector3::new(ray[0], ray[1], 1.0)
 }
 
-/// [`dmd_on_ray`] without a branch, for loops over many points (vector lanes):
-/// NaN behind the projector.
+/// The DMD pixel (u, v) that lights the point at inverse depth `s` (1 / camera
+/// z) on the ray `along` ([`ray_in_projector`]); NaN behind the projector.
+/// Without a branch, for loops over many points (vector lanes).
 #[inline(always)]
 fn dmd_on_ray_or_nan(
     camera_to_projector: &Pose,
@@ -669,6 +670,7 @@ fn dmd_on_ray_or_nan(
     along: &Vector3<f64>,
     s: f64,
 ) -> [f64; 2] {
+    // The point times s > 0: the same projection, no division by s.
     let d = along + camera_to_projector.translation_m * s;
     let p = projector.normalised_to_pixel(d.x / d.z, d.y / d.z);
     if d.z > 0.0 {
@@ -678,8 +680,7 @@ fn dmd_on_ray_or_nan(
     }
 }
 
-/// The DMD pixel (u, v) that lights the point at inverse depth `s` (1 / camera
-/// z) on the ray `along` ([`ray_in_projector`]); `None` behind the projector.
+/// [`dmd_on_ray_or_nan`] as an option: `None` behind the projector.
 #[inline(always)]
 fn dmd_on_ray(
     camera_to_projector: &Pose,
@@ -687,13 +688,8 @@ fn dmd_on_ray(
     along: &Vector3<f64>,
     s: f64,
 ) -> Option<[f64; 2]> {
-    // The point times s > 0: the same projection, no division by s.
-    let d = along + camera_to_projector.translation_m * s;
-    if d.z <= 0.0 {
-        return None;
-    }
-    let p = projector.normalised_to_pixel(d.x / d.z, d.y / d.z);
-    Some([p.x, p.y])
+    let p = dmd_on_ray_or_nan(camera_to_projector, projector, along, s);
+    (!p[0].is_nan()).then_some(p)
 }
 
 #[cfg(test)]
