@@ -420,15 +420,13 @@ impl Decoder {
             // projection each, in a loop without branches over the pixels
             // (vector lanes); a pixel without a step gets NaN, which its maps
             // already hold.
-            let at0 = chunk.start;
             for (steps, pat) in newton.iter().zip(&pats) {
                 let f = pat.frequency;
-                let n = chunk.len();
                 let (phase_out, depth_out) = out_pair(out, pat.index, p + pat.index);
-                let lanes = phase_out[at0..at0 + n]
+                let lanes = phase_out[chunk.clone()]
                     .iter_mut()
-                    .zip(&mut depth_out[at0..at0 + n])
-                    .zip(steps[..n].iter().zip(&along[..n]));
+                    .zip(&mut depth_out[chunk.clone()])
+                    .zip(steps.iter().zip(along.iter()));
                 for ((phase, depth), (step, along)) in lanes {
                     let s = step.solve(&self.camera_to_projector, &self.projector, along, f);
                     // NaN (no step, or behind the projector) fails this too.
@@ -673,11 +671,10 @@ fn dmd_on_ray_or_nan(
     // The point times s > 0: the same projection, no division by s.
     let d = along + camera_to_projector.translation_m * s;
     let p = projector.normalised_to_pixel(d.x / d.z, d.y / d.z);
-    if d.z > 0.0 {
-        [p.x, p.y]
-    } else {
-        [f64::NAN; 2]
-    }
+    // One select per coordinate: a select of the pair kept the compiler
+    // from vectorising the loops over pixels.
+    let front = d.z > 0.0;
+    [p.x, p.y].map(|c| if front { c } else { f64::NAN })
 }
 
 /// [`dmd_on_ray_or_nan`] as an option: `None` behind the projector.
