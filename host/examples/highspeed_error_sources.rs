@@ -2,7 +2,10 @@
 //! `spheres` scan (640x480, one frame, twin-truth calibration) with the
 //! twin's imperfections removed one by one, each instant's signed depth
 //! error (decoded minus true camera z) as percentiles over the object's
-//! decoded pixels.
+//! decoded pixels. One variant shows the set as sinusoidal grey fringes
+//! (the DMD cannot at 5 kHz; the twin can) to tell the square waves'
+//! share; the last table is each instant's depth change per radian of its
+//! phase at the image centre, to read phase errors as depth.
 //!
 //! ```sh
 //! cargo run --release -p slscan --example highspeed_error_sources
@@ -10,11 +13,17 @@
 
 use std::sync::Arc;
 
+use anyhow::Context;
+
 use hil_sim::twin::scenes::{built_in, Detail};
 use hil_sim::twin::sensor::Channels;
 use hil_sim::twin::TwinRig;
 use nalgebra::Point3;
-use slscan::board::ClientConfig;
+use slscan::board::{ClientConfig, ScanOutcome};
+use slscan::calibration::Head;
+use slscan::highspeed::PatternSet;
+use slscan::raster::Raster;
+use slscan::rig::{Board, Camera, Led, Projector, RigError};
 use slscan::scan::high_speed::{run_high_speed, HighSpeedConfig, InstantResult};
 use slscan::sim::high_speed::{high_speed_sensor, SimHighSpeedConfig};
 use slscan::sim::rig::{SimRig, SimRigConfig};
@@ -28,26 +37,104 @@ struct Variant {
     noise_free: bool,
     sharp_projector: bool,
     no_crosstalk: bool,
+    /// The patterns as sinusoidal grey fringes instead of the DMD's binary ones.
+    grey: bool,
     /// The demultiplexer's window leak (its default is 0.01).
     leak: f64,
 }
 
+/// The simulated rig with each binary fringe it is given swapped for the
+/// grey sinusoid it was cut from (same phase, same LED).
+struct GreyFringes<'a> {
+    rig: &'a mut SimRig,
+    set: PatternSet,
+}
+
+impl Board for GreyFringes<'_> {
+    fn run_plan(&mut self, plan: &protocol::ScanPlan) -> Result<ScanOutcome, RigError> {
+        self.rig.run_plan(plan)
+    }
+}
+
+impl Projector for GreyFringes<'_> {
+    fn dmd_size_px(&self, head: usize) -> Result<(u32, u32), RigError> {
+        self.rig.dmd_size_px(head)
+    }
+    fn load_sequence(&mut self, head: usize, patterns: &[Raster<f32>]) -> Result<(), RigError> {
+        self.rig.load_sequence(head, patterns)
+    }
+    fn load_coloured_sequence(
+        &mut self,
+        head: usize,
+        patterns: &[Raster<f32>],
+        leds: &[Led],
+    ) -> Result<(), RigError> {
+        // The 24-pattern set is the only sequence of this length; the LED
+        // flats (3 frames) pass unchanged.
+        if patterns.len() != self.set.patterns().len() {
+            return self.rig.load_coloured_sequence(head, patterns, leds);
+        }
+        let grey: Vec<Raster<f32>> = self
+            .set
+            .patterns()
+            .iter()
+            .zip(patterns)
+            .map(|(p, binary)| {
+                Raster::from_fn(binary.width, binary.height, |u, v| {
+                    let phase = PatternSet::phase_at(p, u as f64, v as f64);
+                    (0.5 + 0.5 * phase.cos()) as f32
+                })
+            })
+            .collect();
+        self.rig.load_coloured_sequence(head, &grey, leds)
+    }
+}
+
+impl Camera for GreyFringes<'_> {
+    fn image_size_px(&self, head: usize) -> Result<(u32, u32), RigError> {
+        self.rig.image_size_px(head)
+    }
+    fn take_frames(&mut self, head: usize) -> Result<Vec<Raster<f32>>, RigError> {
+        self.rig.take_frames(head)
+    }
+    fn take_colour_frames(&mut self, head: usize) -> Result<Vec<[Raster<f32>; 3]>, RigError> {
+        self.rig.take_colour_frames(head)
+    }
+}
+
 fn main() -> anyhow::Result<()> {
-    // (name, noise-free sensor, projector in focus, no crosstalk, window leak)
+    // (name, noise-free sensor, projector in focus, no crosstalk, grey fringes, window leak)
     let variants = [
-        ("as built", false, false, false, 0.01),
-        ("noise-free float sensor", true, false, false, 0.01),
-        ("+ projector in focus", true, true, false, 0.01),
-        ("+ no colour crosstalk", true, true, true, 0.01),
-        ("as built, window leak 0.05", false, false, false, 0.05),
-        ("as built, window leak 0.2", false, false, false, 0.2),
+        ("as built", false, false, false, false, 0.01),
+        ("noise-free float sensor", true, false, false, false, 0.01),
+        ("+ projector in focus", true, true, false, false, 0.01),
+        ("+ no colour crosstalk", true, true, true, false, 0.01),
+        ("+ sinusoidal grey fringes", true, true, true, true, 0.01),
+        (
+            "as built, sinusoidal grey fringes",
+            false,
+            false,
+            false,
+            true,
+            0.01,
+        ),
+        (
+            "as built, window leak 0.05",
+            false,
+            false,
+            false,
+            false,
+            0.05,
+        ),
+        ("as built, window leak 0.2", false, false, false, false, 0.2),
     ]
     .map(
-        |(name, noise_free, sharp_projector, no_crosstalk, leak)| Variant {
+        |(name, noise_free, sharp_projector, no_crosstalk, grey, leak)| Variant {
             name,
             noise_free,
             sharp_projector,
             no_crosstalk,
+            grey,
             leak,
         },
     );
@@ -61,7 +148,62 @@ fn main() -> anyhow::Result<()> {
             );
         }
     }
+    println!("\n| instant (direction, LED) | depth per radian of phase at the image centre, 0.48 m, mm |");
+    println!("|---|---|");
+    for (pattern, mm) in depth_per_radian()? {
+        println!("| {pattern} | {mm:.2} |");
+    }
     Ok(())
+}
+
+/// Per pattern: how far the surface at the centre pixel moves, at 0.48 m
+/// (the decoder's reference depth), for one radian of that pattern's phase.
+fn depth_per_radian() -> anyhow::Result<Vec<(String, f64)>> {
+    let defaults = SimHighSpeedConfig::new("spheres");
+    let detail = Detail {
+        camera: defaults.camera_px,
+        projector: defaults.projector_px,
+    };
+    let (_, rig) = built_in("spheres", &detail)?;
+    let calibration = twin_calibration(&rig, 1);
+    let head: &Head = &calibration.heads[0];
+    let set = PatternSet::seed001((detail.projector.0, detail.projector.1))?;
+    let camera = &head.camera;
+    let (u, v) = (
+        f64::from(camera.width_px) / 2.0,
+        f64::from(camera.height_px) / 2.0,
+    );
+    let (x, y) = camera
+        .pixel_to_normalised(u, v)
+        .context("centre pixel does not undistort")?;
+    let dz = 1e-4;
+    // The camera-frame point at depth z on the centre ray, in the world.
+    let at = |z: f64| {
+        let d = camera.pose.inverse();
+        d.apply(&Point3::new(x * z, y * z, z))
+    };
+    let (near, far) = (
+        head.projector.project(&at(0.48)),
+        head.projector.project(&at(0.48 + dz)),
+    );
+    let (Some(near), Some(far)) = (near, far) else {
+        anyhow::bail!("the centre pixel's point is behind the projector");
+    };
+    Ok(set
+        .patterns()
+        .iter()
+        .map(|p| {
+            let dphi =
+                PatternSet::phase_at(p, far.x, far.y) - PatternSet::phase_at(p, near.x, near.y);
+            let name = format!(
+                "{} ({}, {})",
+                p.index,
+                p.direction,
+                ["R", "G", "B"][p.colour]
+            );
+            (name, 1e3 * dz / dphi.abs())
+        })
+        .collect())
 }
 
 /// Per instant: its name, decoded object pixels, error percentiles (um).
@@ -104,7 +246,15 @@ fn signed_errors(variant: Variant) -> anyhow::Result<Vec<(String, usize, [f64; 5
     let mut config = HighSpeedConfig::new("spheres");
     config.frames = 1;
     config.decoder.demux.leak = variant.leak;
-    let result = run_high_speed(&mut sim, &config, &calibration, None, &mut |_| {})?;
+    let result = if variant.grey {
+        let mut grey = GreyFringes {
+            rig: &mut sim,
+            set: PatternSet::seed001((detail.projector.0, detail.projector.1))?,
+        };
+        run_high_speed(&mut grey, &config, &calibration, None, &mut |_| {})?
+    } else {
+        run_high_speed(&mut sim, &config, &calibration, None, &mut |_| {})?
+    };
     result.frames[0]
         .instants
         .iter()
