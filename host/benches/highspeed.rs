@@ -6,7 +6,9 @@
 //!
 //! Then the first stage alone, analytic (crosstalk unmixing, Gaussian low
 //! band) beside ZOCR-Net on tract (`models/highspeed_zocr.onnx`), whose time
-//! replaces the analytic stage's in a decode with `--zocr-model`.
+//! replaces the analytic stage's in a decode with `--zocr-model`; and the
+//! analytic demodulation beside FDD-Net's correction of its phases
+//! (`models/highspeed_fdd.onnx`), which a decode with `--fdd-model` adds.
 //!
 //! `cargo bench -p slscan --bench highspeed` (runs: `HIGHSPEED_BENCH_RUNS=5`). A
 //! table, not criterion: each run holds the shared cores for about a second.
@@ -14,7 +16,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use slscan::highspeed::{Decoder, DecoderConfig, PatternSet, ZocrNet};
+use slscan::highspeed::{Decoder, DecoderConfig, FddNet, PatternSet, ZocrNet};
 use slscan::synth::high_speed::{high_speed_exposure, high_speed_head};
 use slscan::synth::{trace, two_spheres};
 
@@ -77,6 +79,7 @@ fn main() {
         );
     }
     first_stage(runs);
+    third_stage(runs);
 }
 
 /// The first stage alone: the analytic formula beside ZOCR-Net.
@@ -111,6 +114,56 @@ fn first_stage(runs: usize) {
             std::hint::black_box(
                 net.remove_zero_order(channels, w as usize, h as usize)
                     .expect("ZOCR-Net runs"),
+            );
+            learned.push(t.elapsed());
+        }
+        let (a, l) = (median(analytic), median(learned));
+        println!(
+            "| {w}x{h} | {:.0} ms | {:.0} ms ({}) | {:.1}x |",
+            a.as_secs_f64() * 1e3,
+            l.as_secs_f64() * 1e3,
+            net.tiles_per_exposure(w as usize, h as usize),
+            l.as_secs_f64() / a.as_secs_f64()
+        );
+    }
+}
+
+/// The third stage: FDD-Net's correction beside the analytic demodulation
+/// whose phases it corrects.
+fn third_stage(runs: usize) {
+    let onnx = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_fdd.onnx");
+    let set = PatternSet::seed001(DMD).expect("seed set");
+    let net = match FddNet::load(&onnx, &set) {
+        Ok(net) => net,
+        Err(e) => {
+            println!("\nFDD-Net row skipped: {e}");
+            return;
+        }
+    };
+    println!(
+        "\n| image | demodulation, analytic | FDD-Net's correction after it (tiles) | ratio |"
+    );
+    println!("|---|---|---|---|");
+    for (w, h) in [(640u32, 480u32), (1280, 1024)] {
+        let head = high_speed_head(w, h, DMD);
+        let truth = trace(&two_spheres(0.5, 0.6), &head.camera, &head.projector);
+        let planes = high_speed_exposure(&set, &truth, 0.002, 3);
+        let decoder = Decoder::new(set.clone(), &head, DecoderConfig::default()).expect("decoder");
+        let demux = decoder.demultiplexer();
+        let cleaned = demux.remove_zero_order([
+            &planes[0].data[..],
+            &planes[1].data[..],
+            &planes[2].data[..],
+        ]);
+        let (mut analytic, mut learned) = (Vec::new(), Vec::new());
+        for _ in 0..runs {
+            let t = Instant::now();
+            let fringes = demux.demodulate_all(cleaned.clone());
+            analytic.push(t.elapsed());
+            let t = Instant::now();
+            std::hint::black_box(
+                net.correct(demux, &set, &fringes, w as usize, h as usize)
+                    .expect("FDD-Net runs"),
             );
             learned.push(t.elapsed());
         }

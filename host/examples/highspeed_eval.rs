@@ -8,7 +8,10 @@
 //! its own outputs against the twin's noise-free AC and zero order, beside
 //! the formula's, and the whole decoder with it.
 //!
-//! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--samples N] [--zocr PATH]`
+//! With `--fdd models/highspeed_fdd.onnx`, also seed 001's third network
+//! (FDD-Net) correcting the analytic demodulation's phases.
+//!
+//! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--samples N] [--zocr PATH] [--fdd PATH]`
 //! (`--samples`: points on each pixel's epipolar segment, the decoder's default unless given)
 
 use std::path::PathBuf;
@@ -16,11 +19,19 @@ use std::path::PathBuf;
 use anyhow::Context;
 use hil_sim::twin::scenes::{single_head, Detail};
 use slscan::highspeed::{
-    crosstalk_from_flats, Decoder, DecoderConfig, DemuxOptions, PatternSet, ZeroOrderRemoved,
-    ZocrNet,
+    crosstalk_from_flats, Decoder, DecoderConfig, DemuxOptions, FddNet, PatternSet,
+    ZeroOrderRemoved, ZocrNet,
 };
 use slscan::phase::ftp::{ftp_phase, FringeAxis};
 use slscan::sim::high_speed_samples::{random_high_speed_sample, HighSpeedSample};
+
+/// Which learned stage a variant adds to the analytic decoder.
+#[derive(Clone, Copy)]
+enum Learned {
+    No,
+    Zocr,
+    Fdd,
+}
 
 fn detail_size(detail: &Detail) -> (usize, usize) {
     (detail.camera.0 as usize, detail.camera.1 as usize)
@@ -106,6 +117,12 @@ fn main() -> anyhow::Result<()> {
         )),
         None => None,
     };
+    let fdd_path = match args.iter().position(|a| a == "--fdd") {
+        Some(i) => Some(PathBuf::from(
+            args.get(i + 1).context("--fdd needs a path")?,
+        )),
+        None => None,
+    };
     let detail = Detail::default();
     let set = PatternSet::seed001(detail.projector)?;
     let calibration = slscan::sim::truth::twin_calibration(&single_head(&detail), 1);
@@ -118,46 +135,47 @@ fn main() -> anyhow::Result<()> {
         .map(|i| random_high_speed_sample(&set, &detail, seed, i))
         .collect::<Result<_, _>>()?;
     let zocr = zocr_path.map(|p| ZocrNet::load(&p, &set)).transpose()?;
+    let fdd = fdd_path.map(|p| FddNet::load(&p, &set)).transpose()?;
     let flats0 = &samples[0].flats;
     let view = |l: usize| [&flats0[l][0][..], &flats0[l][1][..], &flats0[l][2][..]];
     let crosstalk = crosstalk_from_flats([view(0), view(1), view(2)], 0.995)?;
     println!("crosstalk measured from scene 0's three LED flats (channel <- LED): {crosstalk:.3}");
-    // (name, reference carrier, crosstalk, zero-order removal, ZOCR-Net)
+    // (name, reference carrier, crosstalk, zero-order removal, learned stage)
     let mut variants = vec![
         (
             "linear carrier (FTP-like), raw channels",
             false,
             false,
             false,
-            false,
+            Learned::No,
         ),
         (
             "linear carrier + crosstalk + zero-order removal",
             false,
             true,
             true,
-            false,
+            Learned::No,
         ),
         (
             "reference carrier, raw channels, zero-order removal",
             true,
             false,
             true,
-            false,
+            Learned::No,
         ),
         (
             "reference carrier + crosstalk, no zero-order removal",
             true,
             true,
             false,
-            false,
+            Learned::No,
         ),
         (
             "reference carrier + crosstalk + zero-order removal (analytic)",
             true,
             true,
             true,
-            false,
+            Learned::No,
         ),
     ];
     if zocr.is_some() {
@@ -166,7 +184,16 @@ fn main() -> anyhow::Result<()> {
             true,
             false,
             true,
+            Learned::Zocr,
+        ));
+    }
+    if fdd.is_some() {
+        variants.push((
+            "reference carrier + crosstalk + zero-order removal + FDD-Net (learned stage 3)",
             true,
+            true,
+            true,
+            Learned::Fdd,
         ));
     }
     if let Some(net) = &zocr {
@@ -237,8 +264,10 @@ fn main() -> anyhow::Result<()> {
             ..DecoderConfig::default()
         };
         let mut decoder = Decoder::new(set.clone(), head, config)?;
-        if learned {
-            decoder = decoder.with_zocr(zocr.clone().context("no --zocr")?);
+        match learned {
+            Learned::No => {}
+            Learned::Zocr => decoder = decoder.with_zocr(zocr.clone().context("no --zocr")?),
+            Learned::Fdd => decoder = decoder.with_fdd(fdd.clone().context("no --fdd")?),
         }
         let mut tally = Tally::default();
         let (mut decoded, mut right, mut lit) = (0usize, 0usize, 0usize);

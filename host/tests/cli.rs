@@ -435,40 +435,46 @@ fn physics_correction_without_a_diffusion_restorer_is_refused_before_capture() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `--zocr-model` is seed 001's network: refused outside `--mode
-/// high-speed`, and a file that is not a fitting model fails the scan
-/// before capture, naming the file, with the earlier run's report gone.
+/// `--zocr-model` and `--fdd-model` are seed 001's networks: refused
+/// outside `--mode high-speed`, and a file that is not a fitting model
+/// fails the scan before capture, naming the file, with the earlier run's
+/// report gone.
 #[cfg(feature = "sim")]
 #[test]
-fn a_zocr_model_outside_high_speed_or_unreadable_is_refused_before_capture() {
-    let dir = tmp("zocr-model");
-    let out = dir.join("out");
-    let scan = |mode: &str, model: &Path| {
-        Command::new(env!("CARGO_BIN_EXE_slscan"))
-            .args(["scan", "--sim", "--scene", "spheres", "--mode", mode])
-            .arg("--zocr-model")
-            .arg(model)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap()
-    };
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_zocr.onnx");
-    fails_with(
-        &scan("sequential", &shipped),
-        "--zocr-model is seed 001's network for --mode high-speed only",
-    );
-    assert!(!out.exists(), "a refused scan made its output folder");
-    std::fs::create_dir_all(&out).unwrap();
-    std::fs::write(out.join("report.json"), "{}").unwrap();
-    let bogus = dir.join("bogus.onnx");
-    std::fs::write(&bogus, b"not a network").unwrap();
-    let failed = scan("high-speed", &bogus);
-    fails_with(&failed, "bogus");
-    fails_with(&failed, "nothing written");
-    assert!(
-        !out.join("report.json").exists(),
-        "the earlier run's report survived a failed scan"
-    );
-    let _ = std::fs::remove_dir_all(&dir);
+fn a_high_speed_model_outside_high_speed_or_unreadable_is_refused_before_capture() {
+    for (flag, name) in [
+        ("--zocr-model", "highspeed_zocr"),
+        ("--fdd-model", "highspeed_fdd"),
+    ] {
+        let dir = tmp(name);
+        let out = dir.join("out");
+        let scan = |mode: &str, model: &Path| {
+            Command::new(env!("CARGO_BIN_EXE_slscan"))
+                .args(["scan", "--sim", "--scene", "spheres", "--mode", mode])
+                .arg(flag)
+                .arg(model)
+                .arg("--out")
+                .arg(&out)
+                .output()
+                .unwrap()
+        };
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../models/{name}.onnx"));
+        fails_with(
+            &scan("sequential", &shipped),
+            &format!("{flag} is seed 001's network for --mode high-speed only"),
+        );
+        assert!(!out.exists(), "a refused scan made its output folder");
+        std::fs::create_dir_all(&out).unwrap();
+        std::fs::write(out.join("report.json"), "{}").unwrap();
+        let bogus = dir.join("bogus.onnx");
+        std::fs::write(&bogus, b"not a network").unwrap();
+        let failed = scan("high-speed", &bogus);
+        fails_with(&failed, "bogus");
+        fails_with(&failed, "nothing written");
+        assert!(
+            !out.join("report.json").exists(),
+            "the earlier run's report survived a failed scan ({flag})"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

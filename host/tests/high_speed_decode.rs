@@ -7,8 +7,8 @@
 use std::path::{Path, PathBuf};
 
 use slscan::calibration::Head;
-use slscan::highspeed::zocr::set_periods;
-use slscan::highspeed::{Decoder, DecoderConfig, HighSpeedError, PatternSet, ZocrNet};
+use slscan::highspeed::learned::set_periods;
+use slscan::highspeed::{Decoder, DecoderConfig, FddNet, HighSpeedError, PatternSet, ZocrNet};
 use slscan::raster::Raster;
 use slscan::simd::Simd;
 use slscan::synth::high_speed::{high_speed_exposure, high_speed_head};
@@ -265,4 +265,28 @@ fn a_zocr_net_that_does_not_fit_the_set_is_refused_at_load() {
     for path in [other, underwater, truncated] {
         std::fs::remove_dir_all(path.parent().unwrap()).unwrap();
     }
+}
+
+#[test]
+fn an_fdd_net_that_does_not_fit_the_set_is_refused_at_load() {
+    let set = PatternSet::seed001(DMD).unwrap();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_fdd.onnx");
+    FddNet::load(&shipped, &set).expect("the shipped FDD-Net fits seed 001's set");
+    let other = edited_model("highspeed_fdd", "fdd-periods", |m| {
+        m["periods_px"][5] = serde_json::json!(m["periods_px"][5].as_f64().unwrap() * 0.9);
+    });
+    let err = FddNet::load(&other, &set).unwrap_err();
+    assert!(
+        matches!(err, HighSpeedError::BadPatternSet { .. })
+            && err.to_string().contains("trained for pattern periods"),
+        "{err}"
+    );
+    // ZOCR-Net, trained for the same set, is not a third stage.
+    let zocr = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_zocr.onnx");
+    let err = FddNet::load(&zocr, &set).unwrap_err();
+    assert!(
+        matches!(err, HighSpeedError::BadConfig { .. }) && err.to_string().contains("3 -> 6"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(other.parent().unwrap()).unwrap();
 }

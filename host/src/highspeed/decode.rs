@@ -15,6 +15,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use super::demux::{Demultiplexed, Demultiplexer, DemuxOptions};
+use super::fdd::FddNet;
 use super::set::{PatternSet, SetPattern};
 use super::zocr::ZocrNet;
 use super::HighSpeedError;
@@ -114,6 +115,8 @@ pub struct Decoder {
     demux: Demultiplexer,
     /// ZOCR-Net in place of the analytic zero-order and crosstalk removal.
     zocr: Option<ZocrNet>,
+    /// FDD-Net correcting the demodulated phases.
+    fdd: Option<FddNet>,
     config: DecoderConfig,
 }
 
@@ -177,6 +180,7 @@ impl Decoder {
             samples,
             demux,
             zocr: None,
+            fdd: None,
             config,
         })
     }
@@ -191,6 +195,18 @@ impl Decoder {
     /// The ZOCR-Net in use, if any.
     pub fn zocr(&self) -> Option<&ZocrNet> {
         self.zocr.as_ref()
+    }
+
+    /// The same decoder with FDD-Net correcting every pattern's
+    /// demodulated phase before unwrapping.
+    pub fn with_fdd(mut self, net: FddNet) -> Self {
+        self.fdd = Some(net);
+        self
+    }
+
+    /// The FDD-Net in use, if any.
+    pub fn fdd(&self) -> Option<&FddNet> {
+        self.fdd.as_ref()
     }
 
     /// The same decoder undoing the camera's colour crosstalk `m` (measured
@@ -260,7 +276,11 @@ impl Decoder {
             Some(net) => net.remove_zero_order(planes, self.width, self.height)?,
             None => self.demux.remove_zero_order(planes),
         };
-        let fringes = self.demux.demodulate_all(cleaned);
+        let mut fringes = self.demux.demodulate_all(cleaned);
+        if let Some(net) = &self.fdd {
+            fringes.wrapped =
+                net.correct(&self.demux, &self.set, &fringes, self.width, self.height)?;
+        }
         let p = self.set.patterns().len();
         let (w, h) = (self.width, self.height);
         // Maps 0..p: absolute phase of pattern m; p..2p: its depth. Filled in

@@ -157,6 +157,15 @@ impl Demultiplexer {
         &self.windows
     }
 
+    /// Pattern `m`'s carrier phase at every pixel, the phase it demodulates
+    /// by (radians in [0, 2 pi); NaN where the reference is unknown).
+    pub fn carrier(&self, m: usize) -> Vec<f32> {
+        let (w, h) = self.fft.size();
+        let mut out = vec![0.0; w * h];
+        self.carrier_phase(m, &mut out);
+        out
+    }
+
     /// Splits one exposure (camera channels R, G, B, row-major, same size as
     /// the demultiplexer) into the patterns' wrapped phases and modulations.
     pub fn demultiplex(&self, channels: [&[f32]; 3]) -> Demultiplexed {

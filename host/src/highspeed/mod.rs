@@ -8,21 +8,27 @@
 //!   removal, carrier demodulation with windows sized from the carriers);
 //! - [`zocr`]: ZOCR-Net, the seed's first network, in place of the
 //!   demultiplexer's analytic crosstalk and zero-order removal;
+//! - [`fdd`]: FDD-Net, the seed's third network in a compact residual form:
+//!   every pattern's demodulated phase corrected from all 24 basebands;
+//! - [`learned`]: what the learned stages share (loading, set checks);
 //! - [`decode`]: PDM unwrapping along each pixel's epipolar segment and per-instant
 //!   depth.
 //!
-//! The seed's other two networks (spatial-frequency decomposition,
-//! direction-gated experts) are not built: carrier demodulation does their job.
+//! The seed's second network (spatial-frequency decomposition) is not
+//! built: carrier demodulation by each pattern's reference phase does its job.
 
 pub mod crosstalk;
 pub mod decode;
 pub mod demux;
+pub mod fdd;
+pub mod learned;
 pub mod set;
 pub mod zocr;
 
 pub use crosstalk::crosstalk_from_flats;
 pub use decode::{pdm_along, Decoded, Decoder, DecoderConfig, InstantMap, MAX_SAMPLES};
 pub use demux::{Demultiplexed, Demultiplexer, DemuxOptions, Window, ZeroOrderRemoved};
+pub use fdd::FddNet;
 pub use set::{PatternSet, SetPattern};
 pub use zocr::ZocrNet;
 

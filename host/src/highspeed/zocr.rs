@@ -7,6 +7,7 @@
 use std::path::Path;
 
 use super::demux::ZeroOrderRemoved;
+use super::learned;
 use super::set::PatternSet;
 use super::HighSpeedError;
 use crate::infer::tiles::{infer_tiled, Planes};
@@ -29,59 +30,21 @@ impl ZocrNet {
     /// Loads `onnx` (and its metadata) and checks it was trained for `set`'s
     /// patterns (their DMD periods, in order) with this channel layout.
     pub fn load(onnx: &Path, set: &PatternSet) -> Result<Self, HighSpeedError> {
-        let net = Self {
-            model: Model::load(onnx)?,
-        };
-        let m = &net.model.meta;
-        if net.model.is_diffusion()
-            || m.cond_channels != IN_CHANNELS
-            || m.frame_channels != OUT_CHANNELS
-        {
-            return Err(HighSpeedError::BadConfig {
-                why: format!(
-                    "model {} is a {} network with {} -> {} channels; ZOCR-Net is one-step, {IN_CHANNELS} -> {OUT_CHANNELS}",
-                    onnx.display(),
-                    m.kind,
-                    m.cond_channels,
-                    m.frame_channels
-                ),
-            });
-        }
-        net.check_set(set)?;
-        Ok(net)
+        Ok(Self {
+            model: learned::load_stage(onnx, set, "ZOCR-Net", IN_CHANNELS, OUT_CHANNELS)?,
+        })
     }
 
     /// Whether the network was trained for `set`'s patterns (their DMD
     /// periods, in projection order).
     pub fn check_set(&self, set: &PatternSet) -> Result<(), HighSpeedError> {
-        let periods = set_periods(set);
-        if self.model.trained_for(&periods, 1) {
-            return Ok(());
-        }
-        Err(HighSpeedError::BadPatternSet {
-            why: format!(
-                "model {} was trained for pattern periods {:?} DMD px, this set has {:?}",
-                self.model.path.display(),
-                self.model.meta.periods_px,
-                periods
-            ),
-        })
+        learned::check_set(&self.model, set)
     }
 
     /// A warning when the network was trained on frames of another size
-    /// than `width` x `height`: its fringes' periods in camera pixels, all
-    /// it knows, then differ from what it saw in training.
+    /// than `width` x `height`.
     pub fn size_warning(&self, width: usize, height: usize) -> Option<String> {
-        let trained = self.model.meta.data.as_ref()?.size;
-        (trained != [width, height]).then(|| {
-            format!(
-                "ZOCR-Net {} was trained on {}x{} twin frames; this camera's are {width}x{height}, \
-                 so its fringe periods in pixels may lie outside what the network saw",
-                self.model.path.display(),
-                trained[0],
-                trained[1]
-            )
-        })
+        learned::size_warning(&self.model, "ZOCR-Net", width, height)
     }
 
     /// The network's file.
@@ -91,9 +54,7 @@ impl ZocrNet {
 
     /// Tiles of `width` x `height` the network runs per exposure.
     pub fn tiles_per_exposure(&self, width: usize, height: usize) -> usize {
-        let t = self.model.meta.tile;
-        let along = |n| crate::infer::tiles::axis_origins(n, t, TILE_OVERLAP_PX).len();
-        along(width) * along(height)
+        learned::tiles_per_exposure(&self.model, TILE_OVERLAP_PX, width, height)
     }
 
     /// One exposure (camera R, G, B, row-major, full scale 1) -> each LED's
@@ -126,13 +87,4 @@ impl ZocrNet {
             zero_order: [out(3), out(4), out(5)],
         })
     }
-}
-
-/// The set's patterns' periods on the DMD, pixels, in projection order
-/// (what a ZOCR-Net's metadata records it was trained for).
-pub fn set_periods(set: &PatternSet) -> Vec<f64> {
-    set.patterns()
-        .iter()
-        .map(|p| 1.0 / p.frequency[0].hypot(p.frequency[1]))
-        .collect()
 }

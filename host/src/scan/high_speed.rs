@@ -25,7 +25,7 @@ use super::{Progress, ScanError};
 use crate::calibration::RigCalibration;
 use crate::fit::fit_sphere;
 use crate::highspeed::{
-    crosstalk_from_flats, Decoder, DecoderConfig, PatternSet, SetPattern, ZocrNet,
+    crosstalk_from_flats, Decoder, DecoderConfig, FddNet, PatternSet, SetPattern, ZocrNet,
 };
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
@@ -47,6 +47,10 @@ pub struct HighSpeedConfig {
     /// zero-order and crosstalk removal; checked against the rig's set
     /// before any capture.
     pub zocr: Option<ZocrNet>,
+    /// FDD-Net (seed 001's third network, compact) correcting every
+    /// pattern's demodulated phase; checked against the rig's set before
+    /// any capture.
+    pub fdd: Option<FddNet>,
 }
 
 impl HighSpeedConfig {
@@ -57,6 +61,7 @@ impl HighSpeedConfig {
             frames: 3,
             decoder: DecoderConfig::default(),
             zocr: None,
+            fdd: None,
         }
     }
 }
@@ -169,6 +174,8 @@ pub struct HighSpeedResult {
     /// ZOCR-Net's file when it did the decoder's first stage (`None`: the
     /// analytic zero-order and crosstalk removal).
     pub zocr_model: Option<PathBuf>,
+    /// FDD-Net's file when it corrected the demodulated phases.
+    pub fdd_model: Option<PathBuf>,
 }
 
 /// Minimum points on a sphere for a fit at one instant.
@@ -198,6 +205,14 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
             tracing::warn!("{warning}");
         }
         decoder = decoder.with_zocr(net.clone());
+    }
+    if let Some(net) = &config.fdd {
+        net.check_set(&set)?;
+        let (w, h) = decoder.size();
+        if let Some(warning) = net.size_warning(w, h) {
+            tracing::warn!("{warning}");
+        }
+        decoder = decoder.with_fdd(net.clone());
     }
     let clock_hz = rig
         .limits()
@@ -319,6 +334,7 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
         calibration_is_true: false,
         conventional: None,
         zocr_model: decoder.zocr().map(|n| n.path().to_path_buf()),
+        fdd_model: decoder.fdd().map(|n| n.path().to_path_buf()),
     })
 }
 

@@ -150,11 +150,13 @@ pub struct HighSpeedReport {
     pub camera_rate_hz: f64,
     /// Camera frames.
     pub frames: usize,
-    /// The decoder: "analytic", or "ZOCR-Net + analytic demodulation"
-    /// (seed 001's first network; its other two are not built).
+    /// The decoder: "analytic", or which of seed 001's networks joined the
+    /// analytic stages (ZOCR-Net first, FDD-Net third; the second is not built).
     pub decoder: &'static str,
     /// The first stage's network file, when ZOCR-Net ran.
     pub zocr_model: Option<String>,
+    /// The third stage's network file, when FDD-Net ran.
+    pub fdd_model: Option<String>,
     /// The measured channel <- LED crosstalk, row per camera channel.
     pub crosstalk: [[f64; 3]; 3],
     /// Seconds decoding each frame took.
@@ -212,12 +214,14 @@ pub fn report(scan: &HighSpeedResult) -> HighSpeedReport {
         pattern_rate_hz: scan.pattern_rate_hz,
         camera_rate_hz: scan.camera_rate_hz,
         frames: scan.frames.len(),
-        decoder: if scan.zocr_model.is_some() {
-            "ZOCR-Net + analytic demodulation"
-        } else {
-            "analytic"
+        decoder: match (scan.zocr_model.is_some(), scan.fdd_model.is_some()) {
+            (false, false) => "analytic",
+            (true, false) => "ZOCR-Net + analytic demodulation",
+            (false, true) => "analytic + FDD-Net",
+            (true, true) => "ZOCR-Net + analytic demodulation + FDD-Net",
         },
         zocr_model: scan.zocr_model.as_ref().map(|p| p.display().to_string()),
+        fdd_model: scan.fdd_model.as_ref().map(|p| p.display().to_string()),
         crosstalk: [0, 1, 2].map(|r| [0, 1, 2].map(|c| m[(r, c)])),
         decode_s: scan.frames.iter().map(|f| f.decode_s).collect(),
         calibration_is_true: scan.calibration_is_true,

@@ -151,6 +151,12 @@ pub struct Args {
     /// checked against the pattern set before any capture.
     #[arg(long, value_name = "ONNX")]
     zocr_model: Option<PathBuf>,
+    /// --mode high-speed: seed 001's FDD-Net (an ONNX file from
+    /// training/highspeed, such as models/highspeed_fdd.onnx) corrects every
+    /// pattern's demodulated phase before unwrapping; checked against the
+    /// pattern set before any capture.
+    #[arg(long, value_name = "ONNX")]
+    fdd_model: Option<PathBuf>,
     /// Drive the simulated projectors through this DMD controller's USB HID
     /// driver and hil-sim's byte-level controller (--sim; default: patterns
     /// go straight to the simulated DMDs).
@@ -492,6 +498,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.zocr_model.is_none() || matches!(args.mode, ModeArg::HighSpeed),
         "--zocr-model is seed 001's network for --mode high-speed only"
     );
+    anyhow::ensure!(
+        args.fdd_model.is_none() || matches!(args.mode, ModeArg::HighSpeed),
+        "--fdd-model is seed 001's network for --mode high-speed only"
+    );
     let mode = match args.mode {
         ModeArg::Sequential => Mode::Sequential,
         ModeArg::Simultaneous => Mode::Simultaneous,
@@ -506,6 +516,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 projector_driver: args.projector_driver.map(Into::into),
                 conventional: args.compare_conventional,
                 zocr_model: args.zocr_model.as_deref(),
+                fdd_model: args.fdd_model.as_deref(),
             })
         }
         ModeArg::HighSpeed => return high_speed_hardware(&args),
@@ -584,6 +595,8 @@ fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
     if let Some(head) = calibration.heads.first() {
         let dmd = (head.projector.width_px, head.projector.height_px);
         config.zocr = super::scan_high_speed::load_zocr(args.zocr_model.as_deref(), dmd)
+            .with_context(failed)?;
+        config.fdd = super::scan_high_speed::load_fdd(args.fdd_model.as_deref(), dmd)
             .with_context(failed)?;
     }
     let board = SerialBoard::open(port, ClientConfig::default())

@@ -28,6 +28,8 @@ pub struct Options<'a> {
     pub conventional: bool,
     /// `--zocr-model`: ZOCR-Net in place of the analytic first stage.
     pub zocr_model: Option<&'a Path>,
+    /// `--fdd-model`: FDD-Net correcting the demodulated phases.
+    pub fdd_model: Option<&'a Path>,
 }
 
 /// `--zocr-model`, loaded and checked against seed 001's set on a DMD of
@@ -43,6 +45,22 @@ pub fn load_zocr(
     let set = slscan::highspeed::PatternSet::seed001(dmd_px)?;
     let net = slscan::highspeed::ZocrNet::load(path, &set)
         .with_context(|| format!("--zocr-model {}", path.display()))?;
+    Ok(Some(net))
+}
+
+/// `--fdd-model`, loaded and checked against seed 001's set on a DMD of
+/// `dmd_px` before anything else happens.
+pub fn load_fdd(
+    path: Option<&Path>,
+    dmd_px: (u32, u32),
+) -> anyhow::Result<Option<slscan::highspeed::FddNet>> {
+    use anyhow::Context;
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    let set = slscan::highspeed::PatternSet::seed001(dmd_px)?;
+    let net = slscan::highspeed::FddNet::load(path, &set)
+        .with_context(|| format!("--fdd-model {}", path.display()))?;
     Ok(Some(net))
 }
 
@@ -72,6 +90,7 @@ fn scan_sim(options: &Options) -> anyhow::Result<HighSpeedReport> {
     };
     remove_stale(options.out).with_context(failed)?;
     config.scan.zocr = load_zocr(options.zocr_model, config.projector_px).with_context(failed)?;
+    config.scan.fdd = load_fdd(options.fdd_model, config.projector_px).with_context(failed)?;
     let mut bars = super::scan::Bars::new();
     let result = run_sim_high_speed(&config, &mut |p| bars.on(p)).with_context(failed)?;
     write_high_speed(options.out, &result, config.scan.decoder.depth_range_m).with_context(failed)
