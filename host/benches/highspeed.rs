@@ -16,7 +16,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use slscan::highspeed::{Decoder, DecoderConfig, FddNet, PatternSet, ZocrNet};
+use slscan::highspeed::{Decoder, DecoderConfig, FddNet, LearnedStage, PatternSet, ZocrNet};
 use slscan::synth::high_speed::{high_speed_exposure, high_speed_head};
 use slscan::synth::{trace, two_spheres};
 
@@ -82,6 +82,42 @@ fn main() {
     third_stage(runs);
 }
 
+/// One learned stage beside the analytic step it replaces or follows, at
+/// both image sizes: `stage(w, h)` sets up the exposure and gives the two
+/// steps to time (analytic, learned: the learned one may use the analytic
+/// one's output, so they run in that order).
+fn stage_table<N: LearnedStage>(
+    runs: usize,
+    net: &N,
+    columns: &str,
+    stage: impl Fn(u32, u32) -> Box<dyn FnMut() -> (Duration, Duration)>,
+) {
+    println!("\n| image | {columns} | ratio |");
+    println!("|---|---|---|---|");
+    for (w, h) in [(640u32, 480u32), (1280, 1024)] {
+        let mut step = stage(w, h);
+        let (analytic, learned): (Vec<_>, Vec<_>) = (0..runs).map(|_| step()).unzip();
+        let (a, l) = (median(analytic), median(learned));
+        println!(
+            "| {w}x{h} | {:.0} ms | {:.0} ms ({}) | {:.1}x |",
+            a.as_secs_f64() * 1e3,
+            l.as_secs_f64() * 1e3,
+            net.tiles_per_exposure(w as usize, h as usize),
+            l.as_secs_f64() / a.as_secs_f64()
+        );
+    }
+}
+
+/// The bench's exposure of two spheres before a wall at `w` x `h`, and its
+/// decoder.
+fn exposure(set: &PatternSet, w: u32, h: u32) -> (Decoder, [Vec<f32>; 3]) {
+    let head = high_speed_head(w, h, DMD);
+    let truth = trace(&two_spheres(0.5, 0.6), &head.camera, &head.projector);
+    let planes = high_speed_exposure(set, &truth, 0.002, 3).map(|p| p.data);
+    let decoder = Decoder::new(set.clone(), &head, DecoderConfig::default()).expect("decoder");
+    (decoder, planes)
+}
+
 /// The first stage alone: the analytic formula beside ZOCR-Net.
 fn first_stage(runs: usize) {
     let onnx = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_zocr.onnx");
@@ -93,39 +129,27 @@ fn first_stage(runs: usize) {
             return;
         }
     };
-    println!("\n| image | stage 1, analytic | stage 1, ZOCR-Net (tiles) | ratio |");
-    println!("|---|---|---|---|");
-    for (w, h) in [(640u32, 480u32), (1280, 1024)] {
-        let head = high_speed_head(w, h, DMD);
-        let truth = trace(&two_spheres(0.5, 0.6), &head.camera, &head.projector);
-        let planes = high_speed_exposure(&set, &truth, 0.002, 3);
-        let decoder = Decoder::new(set.clone(), &head, DecoderConfig::default()).expect("decoder");
-        let channels = [
-            &planes[0].data[..],
-            &planes[1].data[..],
-            &planes[2].data[..],
-        ];
-        let (mut analytic, mut learned) = (Vec::new(), Vec::new());
-        for _ in 0..runs {
-            let t = Instant::now();
-            std::hint::black_box(decoder.demultiplexer().remove_zero_order(channels));
-            analytic.push(t.elapsed());
-            let t = Instant::now();
-            std::hint::black_box(
-                net.remove_zero_order(channels, w as usize, h as usize)
-                    .expect("ZOCR-Net runs"),
-            );
-            learned.push(t.elapsed());
-        }
-        let (a, l) = (median(analytic), median(learned));
-        println!(
-            "| {w}x{h} | {:.0} ms | {:.0} ms ({}) | {:.1}x |",
-            a.as_secs_f64() * 1e3,
-            l.as_secs_f64() * 1e3,
-            net.tiles_per_exposure(w as usize, h as usize),
-            l.as_secs_f64() / a.as_secs_f64()
-        );
-    }
+    stage_table(
+        runs,
+        &net,
+        "stage 1, analytic | stage 1, ZOCR-Net (tiles)",
+        |w, h| {
+            let (decoder, planes) = exposure(&set, w, h);
+            let net = net.clone();
+            Box::new(move || {
+                let channels = [&planes[0][..], &planes[1][..], &planes[2][..]];
+                let t = Instant::now();
+                std::hint::black_box(decoder.demultiplexer().remove_zero_order(channels));
+                let analytic = t.elapsed();
+                let t = Instant::now();
+                std::hint::black_box(
+                    net.remove_zero_order(channels, w as usize, h as usize)
+                        .expect("ZOCR-Net runs"),
+                );
+                (analytic, t.elapsed())
+            })
+        },
+    );
 }
 
 /// The third stage: FDD-Net's correction beside the analytic demodulation
@@ -140,40 +164,30 @@ fn third_stage(runs: usize) {
             return;
         }
     };
-    println!(
-        "\n| image | demodulation, analytic | FDD-Net's correction after it (tiles) | ratio |"
+    stage_table(
+        runs,
+        &net,
+        "demodulation, analytic | FDD-Net's correction after it (tiles)",
+        |w, h| {
+            let (decoder, planes) = exposure(&set, w, h);
+            let cleaned = decoder.demultiplexer().remove_zero_order([
+                &planes[0][..],
+                &planes[1][..],
+                &planes[2][..],
+            ]);
+            let (net, set) = (net.clone(), set.clone());
+            Box::new(move || {
+                let demux = decoder.demultiplexer();
+                let t = Instant::now();
+                let fringes = demux.demodulate_all(cleaned.clone());
+                let analytic = t.elapsed();
+                let t = Instant::now();
+                std::hint::black_box(
+                    net.correct(demux, &set, &fringes, w as usize, h as usize)
+                        .expect("FDD-Net runs"),
+                );
+                (analytic, t.elapsed())
+            })
+        },
     );
-    println!("|---|---|---|---|");
-    for (w, h) in [(640u32, 480u32), (1280, 1024)] {
-        let head = high_speed_head(w, h, DMD);
-        let truth = trace(&two_spheres(0.5, 0.6), &head.camera, &head.projector);
-        let planes = high_speed_exposure(&set, &truth, 0.002, 3);
-        let decoder = Decoder::new(set.clone(), &head, DecoderConfig::default()).expect("decoder");
-        let demux = decoder.demultiplexer();
-        let cleaned = demux.remove_zero_order([
-            &planes[0].data[..],
-            &planes[1].data[..],
-            &planes[2].data[..],
-        ]);
-        let (mut analytic, mut learned) = (Vec::new(), Vec::new());
-        for _ in 0..runs {
-            let t = Instant::now();
-            let fringes = demux.demodulate_all(cleaned.clone());
-            analytic.push(t.elapsed());
-            let t = Instant::now();
-            std::hint::black_box(
-                net.correct(demux, &set, &fringes, w as usize, h as usize)
-                    .expect("FDD-Net runs"),
-            );
-            learned.push(t.elapsed());
-        }
-        let (a, l) = (median(analytic), median(learned));
-        println!(
-            "| {w}x{h} | {:.0} ms | {:.0} ms ({}) | {:.1}x |",
-            a.as_secs_f64() * 1e3,
-            l.as_secs_f64() * 1e3,
-            net.tiles_per_exposure(w as usize, h as usize),
-            l.as_secs_f64() / a.as_secs_f64()
-        );
-    }
 }

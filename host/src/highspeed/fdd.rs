@@ -23,7 +23,7 @@
 use std::path::Path;
 
 use super::demux::{Demultiplexed, Demultiplexer};
-use super::learned;
+use super::learned::{self, LearnedStage};
 use super::set::PatternSet;
 use super::HighSpeedError;
 use crate::infer::tiles::{infer_tiled, Planes};
@@ -77,6 +77,15 @@ pub struct FddNet {
     model: Model,
 }
 
+impl LearnedStage for FddNet {
+    const NAME: &'static str = "FDD-Net";
+    const TILE_OVERLAP_PX: usize = TILE_OVERLAP_PX;
+
+    fn model(&self) -> &Model {
+        &self.model
+    }
+}
+
 impl FddNet {
     /// Loads `onnx` (and its metadata) and checks it was trained for `set`'s
     /// patterns (their DMD periods, in order) with this channel layout.
@@ -92,27 +101,6 @@ impl FddNet {
         Ok(Self {
             model: learned::load_stage(onnx, set, "FDD-Net", IN_CHANNELS, OUT_CHANNELS)?,
         })
-    }
-
-    /// Whether the network was trained for `set`'s patterns.
-    pub fn check_set(&self, set: &PatternSet) -> Result<(), HighSpeedError> {
-        learned::check_set(&self.model, set)
-    }
-
-    /// A warning when the network was trained on frames of another size
-    /// than `width` x `height`.
-    pub fn size_warning(&self, width: usize, height: usize) -> Option<String> {
-        learned::size_warning(&self.model, "FDD-Net", width, height)
-    }
-
-    /// The network's file.
-    pub fn path(&self) -> &Path {
-        &self.model.path
-    }
-
-    /// Tiles of `width` x `height` the network runs per exposure.
-    pub fn tiles_per_exposure(&self, width: usize, height: usize) -> usize {
-        learned::tiles_per_exposure(&self.model, TILE_OVERLAP_PX, width, height)
     }
 
     /// Every pattern's wrapped phase corrected (radians in (-pi, pi]; NaN
@@ -137,7 +125,7 @@ impl FddNet {
             &planes,
             &vec![true; plane],
             self.model.meta.tile,
-            TILE_OVERLAP_PX,
+            Self::TILE_OVERLAP_PX,
             OUT_CHANNELS,
             |_, tile| self.model.run(&[tile]),
         )?;

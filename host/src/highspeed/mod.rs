@@ -29,6 +29,7 @@ pub use crosstalk::crosstalk_from_flats;
 pub use decode::{pdm_along, Decoded, Decoder, DecoderConfig, InstantMap, MAX_SAMPLES};
 pub use demux::{Demultiplexed, Demultiplexer, DemuxOptions, Window, ZeroOrderRemoved};
 pub use fdd::FddNet;
+pub use learned::LearnedStage;
 pub use set::{PatternSet, SetPattern};
 pub use zocr::ZocrNet;
 

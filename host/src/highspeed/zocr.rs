@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use super::demux::ZeroOrderRemoved;
-use super::learned;
+use super::learned::{self, LearnedStage};
 use super::set::PatternSet;
 use super::HighSpeedError;
 use crate::infer::tiles::{infer_tiled, Planes};
@@ -26,6 +26,15 @@ pub struct ZocrNet {
     model: Model,
 }
 
+impl LearnedStage for ZocrNet {
+    const NAME: &'static str = "ZOCR-Net";
+    const TILE_OVERLAP_PX: usize = TILE_OVERLAP_PX;
+
+    fn model(&self) -> &Model {
+        &self.model
+    }
+}
+
 impl ZocrNet {
     /// Loads `onnx` (and its metadata) and checks it was trained for `set`'s
     /// patterns (their DMD periods, in order) with this channel layout.
@@ -33,28 +42,6 @@ impl ZocrNet {
         Ok(Self {
             model: learned::load_stage(onnx, set, "ZOCR-Net", IN_CHANNELS, OUT_CHANNELS)?,
         })
-    }
-
-    /// Whether the network was trained for `set`'s patterns (their DMD
-    /// periods, in projection order).
-    pub fn check_set(&self, set: &PatternSet) -> Result<(), HighSpeedError> {
-        learned::check_set(&self.model, set)
-    }
-
-    /// A warning when the network was trained on frames of another size
-    /// than `width` x `height`.
-    pub fn size_warning(&self, width: usize, height: usize) -> Option<String> {
-        learned::size_warning(&self.model, "ZOCR-Net", width, height)
-    }
-
-    /// The network's file.
-    pub fn path(&self) -> &Path {
-        &self.model.path
-    }
-
-    /// Tiles of `width` x `height` the network runs per exposure.
-    pub fn tiles_per_exposure(&self, width: usize, height: usize) -> usize {
-        learned::tiles_per_exposure(&self.model, TILE_OVERLAP_PX, width, height)
     }
 
     /// One exposure (camera R, G, B, row-major, full scale 1) -> each LED's
@@ -77,7 +64,7 @@ impl ZocrNet {
             &planes,
             &vec![true; plane],
             self.model.meta.tile,
-            TILE_OVERLAP_PX,
+            Self::TILE_OVERLAP_PX,
             OUT_CHANNELS,
             |_, tile| self.model.run(&[tile]),
         )?;

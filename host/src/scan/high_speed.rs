@@ -25,7 +25,8 @@ use super::{Progress, ScanError};
 use crate::calibration::RigCalibration;
 use crate::fit::fit_sphere;
 use crate::highspeed::{
-    crosstalk_from_flats, Decoder, DecoderConfig, FddNet, PatternSet, SetPattern, ZocrNet,
+    crosstalk_from_flats, Decoder, DecoderConfig, FddNet, LearnedStage, PatternSet, SetPattern,
+    ZocrNet,
 };
 use crate::point_cloud::PointCloud;
 use crate::raster::Raster;
@@ -199,19 +200,11 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
     let set = PatternSet::seed001(dmd)?;
     let mut decoder = Decoder::new(set.clone(), head, config.decoder)?;
     if let Some(net) = &config.zocr {
-        net.check_set(&set)?;
-        let (w, h) = decoder.size();
-        if let Some(warning) = net.size_warning(w, h) {
-            tracing::warn!("{warning}");
-        }
+        check_stage(net, &set, decoder.size())?;
         decoder = decoder.with_zocr(net.clone());
     }
     if let Some(net) = &config.fdd {
-        net.check_set(&set)?;
-        let (w, h) = decoder.size();
-        if let Some(warning) = net.size_warning(w, h) {
-            tracing::warn!("{warning}");
-        }
+        check_stage(net, &set, decoder.size())?;
         decoder = decoder.with_fdd(net.clone());
     }
     let clock_hz = rig
@@ -336,6 +329,20 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
         zocr_model: decoder.zocr().map(|n| n.path().to_path_buf()),
         fdd_model: decoder.fdd().map(|n| n.path().to_path_buf()),
     })
+}
+
+/// A learned stage must fit the rig's pattern set; one trained at another
+/// camera size runs with a warning.
+fn check_stage(
+    net: &impl LearnedStage,
+    set: &PatternSet,
+    (width, height): (usize, usize),
+) -> Result<(), ScanError> {
+    net.check_set(set)?;
+    if let Some(warning) = net.size_warning(width, height) {
+        tracing::warn!("{warning}");
+    }
+    Ok(())
 }
 
 /// How long the DMD shows each of the 24 patterns (the plan's shortest
