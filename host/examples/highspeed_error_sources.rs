@@ -74,18 +74,7 @@ impl Projector for GreyFringes<'_> {
         if patterns.len() != self.set.patterns().len() {
             return self.rig.load_coloured_sequence(head, patterns, leds);
         }
-        let grey: Vec<Raster<f32>> = self
-            .set
-            .patterns()
-            .iter()
-            .zip(patterns)
-            .map(|(p, binary)| {
-                Raster::from_fn(binary.width, binary.height, |u, v| {
-                    let phase = PatternSet::phase_at(p, u as f64, v as f64);
-                    (0.5 + 0.5 * phase.cos()) as f32
-                })
-            })
-            .collect();
+        let grey = self.set.grey_frames();
         self.rig.load_coloured_sequence(head, &grey, leds)
     }
 }

@@ -115,23 +115,32 @@ impl PatternSet {
         &self.patterns[(n as usize - 1) * 3 + colour]
     }
 
-    /// The 1-bit DMD frames (0 or 1) in projection order: each grey fringe cut at
-    /// one half (binary defocusing: the projector's defocus and the camera's pixels
-    /// round the square wave; its odd harmonics lie far from every carrier).
-    pub fn binary_frames(&self) -> Vec<Raster<f32>> {
+    /// The grey sinusoidal fringes (0..1) the binary frames are cut from, in
+    /// projection order: what a DMD would show if it could show grey at the
+    /// set's rate (the twin can; the error-source ablations use them).
+    pub fn grey_frames(&self) -> Vec<Raster<f32>> {
         let (w, h) = (self.dmd_px.0 as usize, self.dmd_px.1 as usize);
         self.patterns
             .iter()
             .map(|p| {
-                let grey = Raster::from_fn(w, h, |u, v| {
-                    let phase = std::f64::consts::TAU
-                        * (p.frequency[0] * u as f64 + p.frequency[1] * v as f64);
-                    (0.5 + 0.5 * phase.cos()) as f32
-                });
-                let bits = binarize(&grey, Binarize::Threshold);
+                Raster::from_fn(w, h, |u, v| {
+                    (0.5 + 0.5 * Self::phase_at(p, u as f64, v as f64).cos()) as f32
+                })
+            })
+            .collect()
+    }
+
+    /// The 1-bit DMD frames (0 or 1) in projection order: each grey fringe cut at
+    /// one half (binary defocusing: the projector's defocus and the camera's pixels
+    /// round the square wave; its odd harmonics lie far from every carrier).
+    pub fn binary_frames(&self) -> Vec<Raster<f32>> {
+        self.grey_frames()
+            .iter()
+            .map(|grey| {
+                let bits = binarize(grey, Binarize::Threshold);
                 Raster {
-                    width: w,
-                    height: h,
+                    width: grey.width,
+                    height: grey.height,
                     data: bits.data.iter().map(|&b| f32::from(u8::from(b))).collect(),
                 }
             })
