@@ -65,47 +65,99 @@ pub struct CameraGeometry {
     pub overlap: Vec<bool>,
 }
 
-/// The cached columns of one image row (rows are computed in parallel,
-/// then concatenated; one allocation per row, not per pixel).
-struct RowGeom {
-    depth: Vec<f32>,
-    point: Vec<[f32; 3]>,
-    normal: Vec<[f32; 3]>,
-    object: Vec<u16>,
-    ambient: Vec<[f32; 3]>,
-    water: Vec<f32>,
-    proj: Vec<ProjectorView>,
+/// One image row of every output of [`CameraGeometry`]: rows are filled in
+/// parallel straight into the final maps, so no row is copied after.
+struct RowOut<'a> {
+    depth: &'a mut [f32],
+    point: &'a mut [[f32; 3]],
+    normal: &'a mut [[f32; 3]],
+    object: &'a mut [u16],
+    ambient: &'a mut [[f32; 3]],
+    water: &'a mut [f32],
+    proj: Vec<ProjRow<'a>>,
 }
 
-impl RowGeom {
-    fn with_capacity(n: usize, projectors: usize) -> RowGeom {
-        RowGeom {
-            depth: Vec::with_capacity(n),
-            point: Vec::with_capacity(n),
-            normal: Vec::with_capacity(n),
-            object: Vec::with_capacity(n),
-            ambient: Vec::with_capacity(n),
-            water: Vec::with_capacity(n),
-            proj: (0..projectors)
-                .map(|_| ProjectorView::with_capacity(n))
-                .collect(),
-        }
+/// One image row of one [`ProjectorView`].
+struct ProjRow<'a> {
+    uv_px: &'a mut [[f32; 2]],
+    gain: &'a mut [[f32; 3]],
+    illum: &'a mut [Illum],
+}
+
+impl ProjRow<'_> {
+    fn set(&mut self, x: usize, (uv, gain, illum): ([f32; 2], [f32; 3], Illum)) {
+        self.uv_px[x] = uv;
+        self.gain[x] = gain;
+        self.illum[x] = illum;
     }
 }
 
 impl ProjectorView {
-    fn with_capacity(n: usize) -> ProjectorView {
+    /// `n` pixels of nothing (zeroed maps cost no write until filled).
+    fn empty(n: usize) -> ProjectorView {
         ProjectorView {
-            uv_px: Vec::with_capacity(n),
-            gain: Vec::with_capacity(n),
-            illum: Vec::with_capacity(n),
+            uv_px: vec![[0.0; 2]; n],
+            gain: vec![[0.0; 3]; n],
+            illum: vec![Illum::NoSurface; n],
+        }
+    }
+}
+
+impl CameraGeometry {
+    /// A `width` x `height` geometry of `projectors` views, all zero until
+    /// filled: zeroed maps are fresh pages the parallel fill touches first.
+    fn empty(width: u32, height: u32, projectors: usize) -> CameraGeometry {
+        let n = (width * height) as usize;
+        CameraGeometry {
+            width,
+            height,
+            depth_m: vec![0.0; n],
+            point_m: vec![[0.0; 3]; n],
+            normal: vec![[0.0; 3]; n],
+            object: vec![0; n],
+            ambient: vec![[0.0; 3]; n],
+            water_path_m: vec![0.0; n],
+            projectors: (0..projectors).map(|_| ProjectorView::empty(n)).collect(),
+            overlap: Vec::new(),
         }
     }
 
-    fn push(&mut self, (uv, gain, illum): ([f32; 2], [f32; 3], Illum)) {
-        self.uv_px.push(uv);
-        self.gain.push(gain);
-        self.illum.push(illum);
+    /// Every output split into rows, for a parallel fill.
+    fn rows_mut(&mut self) -> Vec<RowOut<'_>> {
+        let w = self.width as usize;
+        let mut proj: Vec<_> = self
+            .projectors
+            .iter_mut()
+            .map(|p| {
+                p.uv_px
+                    .chunks_mut(w)
+                    .zip(p.gain.chunks_mut(w))
+                    .zip(p.illum.chunks_mut(w))
+            })
+            .collect();
+        self.depth_m
+            .chunks_mut(w)
+            .zip(self.point_m.chunks_mut(w))
+            .zip(self.normal.chunks_mut(w))
+            .zip(self.object.chunks_mut(w))
+            .zip(self.ambient.chunks_mut(w))
+            .zip(self.water_path_m.chunks_mut(w))
+            .map(
+                |(((((depth, point), normal), object), ambient), water)| RowOut {
+                    depth,
+                    point,
+                    normal,
+                    object,
+                    ambient,
+                    water,
+                    proj: proj
+                        .iter_mut()
+                        .filter_map(Iterator::next)
+                        .map(|((uv_px, gain), illum)| ProjRow { uv_px, gain, illum })
+                        .collect(),
+                },
+            )
+            .collect()
     }
 }
 
@@ -155,52 +207,19 @@ impl CameraGeometry {
         scene.scene().validate()?;
         let (w, h) = (rays.width, rays.height);
         let camera = rays.camera;
-        let np = rig.projectors.len();
-        let rows: Vec<RowGeom> = rays
-            .rays
-            .par_chunks(w as usize)
-            .map(|row_rays| {
-                let mut row = RowGeom::with_capacity(w as usize, np);
-                for ray in row_rays {
-                    pixel(scene, rig, camera, ray.as_ref(), &mut row);
+        let mut g = CameraGeometry::empty(w, h, rig.projectors.len());
+        g.rows_mut()
+            .into_par_iter()
+            .zip(rays.rays.par_chunks(w as usize))
+            .for_each(|(mut row, row_rays)| {
+                for (x, ray) in row_rays.iter().enumerate() {
+                    pixel(scene, rig, camera, ray.as_ref(), &mut row, x);
                 }
-                row
-            })
-            .collect();
-        let n = (w * h) as usize;
-        let mut g = CameraGeometry {
-            width: w,
-            height: h,
-            depth_m: Vec::with_capacity(n),
-            point_m: Vec::with_capacity(n),
-            normal: Vec::with_capacity(n),
-            object: Vec::with_capacity(n),
-            ambient: Vec::with_capacity(n),
-            water_path_m: Vec::with_capacity(n),
-            projectors: (0..np).map(|_| ProjectorView::with_capacity(n)).collect(),
-            overlap: Vec::new(),
-        };
-        for r in rows {
-            g.depth_m.extend(r.depth);
-            g.point_m.extend(r.point);
-            g.normal.extend(r.normal);
-            g.object.extend(r.object);
-            g.ambient.extend(r.ambient);
-            g.water_path_m.extend(r.water);
-            for (view, rv) in g.projectors.iter_mut().zip(r.proj) {
-                view.uv_px.extend(rv.uv_px);
-                view.gain.extend(rv.gain);
-                view.illum.extend(rv.illum);
-            }
-        }
-        g.overlap = (0..n)
-            .map(|i| {
-                g.projectors
-                    .iter()
-                    .filter(|p| p.illum[i] == Illum::Lit)
-                    .count()
-                    >= 2
-            })
+            });
+        let views = &g.projectors;
+        g.overlap = (0..(w * h) as usize)
+            .into_par_iter()
+            .map(|i| views.iter().filter(|p| p.illum[i] == Illum::Lit).count() >= 2)
             .collect();
         Ok(g)
     }
@@ -304,19 +323,28 @@ fn camera_ray(rig: &Rig, camera: usize, x: f64, y: f64) -> Option<Ray> {
     }
 }
 
-fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, ray: Option<&Ray>, row: &mut RowGeom) {
+/// Fills pixel `x` of `row`: what camera ray `ray` hits and how each
+/// projector lights it.
+fn pixel(
+    scene: &PosedScene,
+    rig: &Rig,
+    camera: usize,
+    ray: Option<&Ray>,
+    row: &mut RowOut,
+    x: usize,
+) {
     let s = scene.scene();
     let direct = s.ambient_direct.map(|a| a as f32);
-    let miss = |row: &mut RowGeom| {
-        row.depth.push(f32::NAN);
-        row.point.push(NAN3);
-        row.normal.push(NAN3);
-        row.object.push(u16::MAX);
-        row.ambient.push(direct);
-        row.water.push(0.0);
+    let miss = |row: &mut RowOut| {
+        row.depth[x] = f32::NAN;
+        row.point[x] = NAN3;
+        row.normal[x] = NAN3;
+        row.object[x] = u16::MAX;
+        row.ambient[x] = direct;
+        row.water[x] = 0.0;
         row.proj
             .iter_mut()
-            .for_each(|p| p.push((NAN2, [0.0; 3], Illum::NoSurface)));
+            .for_each(|p| p.set(x, (NAN2, [0.0; 3], Illum::NoSurface)));
     };
     let Some(ray) = ray else {
         return miss(row);
@@ -405,12 +433,12 @@ fn pixel(scene: &PosedScene, rig: &Rig, camera: usize, ray: Option<&Ray>, row: &
             });
             (uv32, gain, Illum::Lit)
         })();
-        row.proj[pi].push(state);
+        row.proj[pi].set(x, state);
     }
-    row.depth.push(p_cam.z as f32);
-    row.point.push(f3(&hit.point_m));
-    row.normal.push(f3(&hit.normal));
-    row.object.push(hit.object as u16);
-    row.ambient.push(ambient);
-    row.water.push(water_c as f32);
+    row.depth[x] = p_cam.z as f32;
+    row.point[x] = f3(&hit.point_m);
+    row.normal[x] = f3(&hit.normal);
+    row.object[x] = hit.object as u16;
+    row.ambient[x] = ambient;
+    row.water[x] = water_c as f32;
 }
