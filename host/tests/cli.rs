@@ -435,6 +435,40 @@ fn physics_correction_without_a_diffusion_restorer_is_refused_before_capture() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `--water-edge-margin` is a water scan's: in air, or negative, it is
+/// refused before any capture and nothing is written.
+#[cfg(feature = "sim")]
+#[test]
+fn a_water_edge_margin_in_air_or_negative_is_refused_before_capture() {
+    let dir = tmp("water-edge-margin");
+    let out = dir.join("out");
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_slscan"))
+            .args(["scan", "--sim", "--scene", "spheres"])
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    fails_with(
+        &run(&["--water-edge-margin", "2"]),
+        "describe water: add --medium water",
+    );
+    fails_with(
+        &run(&[
+            "--medium",
+            "water",
+            "--turbidity",
+            "T3",
+            "--water-edge-margin=-1",
+        ]),
+        "edge margin (PSF sigmas) = -1: must be finite and >= 0",
+    );
+    assert!(!out.exists(), "a refused scan made its output folder");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `--zocr-model` and `--fdd-model` are seed 001's networks: refused
 /// outside `--mode high-speed`, and a file that is not a fitting model
 /// fails the scan before capture, naming the file, with the earlier run's

@@ -395,6 +395,11 @@ pub struct UnderwaterReport {
     pub masked_pixels: usize,
     /// Per head: decoded pixels whose ray or column missed its flat port.
     pub port_misses: Vec<usize>,
+    /// Decoded pixels within this many forward-scatter PSF sigmas of a
+    /// silhouette are left out (0: kept).
+    pub edge_margin_sigmas: f64,
+    /// Per head: decoded pixels left out for being within that margin.
+    pub blur_edge_pixels: Vec<usize>,
     /// How the points were triangulated.
     pub triangulation: String,
     /// Per head: the side-by-side picture of its first fringe frame as

@@ -738,7 +738,7 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
         } else {
             None
         };
-        let (r, figures, port_misses) = reconstruct_head(
+        let (r, figures, left_out) = reconstruct_head(
             calibration,
             config,
             &mut captured,
@@ -747,7 +747,8 @@ pub fn run_on_rig<R: Board + Projector + Camera>(
             &mut warnings,
         )?;
         if let Some(restored) = &mut restored {
-            restored.port_misses.push(port_misses);
+            restored.port_misses.push(left_out.port_misses);
+            restored.blur_edge_px.push(left_out.blur_edges);
         }
         tracing::info!(head, points = r.cloud.len(), "reconstructed");
         exposures.push((figures, record));

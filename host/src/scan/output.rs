@@ -318,6 +318,8 @@ fn underwater_report(w: &super::underwater::RestoreFigures) -> UnderwaterReport 
         restore_time_ms: w.time_ms,
         masked_pixels: w.masked_px,
         port_misses: w.port_misses.clone(),
+        edge_margin_sigmas: w.water.edge_margin_sigmas,
+        blur_edge_pixels: w.blur_edge_px.clone(),
         triangulation: "through each head's flat port (Snell at both faces)".into(),
         picture_files: HEAD_NAMES
             .iter()

@@ -2,6 +2,7 @@
 //! calibration, and its captured fringe sets turned into one result with
 //! what the exposure left.
 
+use super::underwater::LeftOut;
 use super::{
     capture, exposure, ExposureFigures, Exposures, Mode, ScanConfig, ScanError, HEAD_NAMES,
 };
@@ -36,9 +37,9 @@ pub(crate) fn head_reconstructor(
 /// several merged per pixel, an adaptive scan's pixels over a step of its
 /// DMD level map left out ([`crate::adaptive::edges`]); with what the
 /// exposure left, and warnings for lost pixels. Under water the decoded
-/// pixels are triangulated through the head's port
-/// ([`super::underwater::through_port`]); the last value counts the pixels
-/// that missed it (0 in air).
+/// pixels are triangulated through the head's port and those within the
+/// blur margin of a silhouette left out ([`super::underwater::finish_head`]);
+/// the last value counts what that left out (nothing in air).
 pub(super) fn reconstruct_head(
     calibration: &RigCalibration,
     config: &ScanConfig,
@@ -46,7 +47,7 @@ pub(super) fn reconstruct_head(
     h: usize,
     record: Option<&capture::AdaptiveRecord>,
     warnings: &mut Vec<String>,
-) -> Result<(Reconstruction, ExposureFigures, usize), ScanError> {
+) -> Result<(Reconstruction, ExposureFigures, LeftOut), ScanError> {
     let head = HEAD_NAMES[h];
     let rc = head_reconstructor(
         calibration,
@@ -88,11 +89,11 @@ pub(super) fn reconstruct_head(
         }
         None => r,
     };
-    let (r, port_misses) = match (&config.medium, &calibration.heads[h].port) {
-        (super::underwater::Medium::Water(_), Some(port)) => {
-            super::underwater::through_port(&rc, &calibration.heads[h], port, r)?
+    let (r, left_out) = match (&config.medium, &calibration.heads[h].port) {
+        (super::underwater::Medium::Water(water), Some(port)) => {
+            super::underwater::finish_head(&rc, &calibration.heads[h], port, water, r)?
         }
-        _ => (r, 0),
+        _ => (r, LeftOut::default()),
     };
     if config.mode == Mode::Sequential {
         exposure::warn(head, &saturated, record.map(|r| &r.stats), warnings);
@@ -111,5 +112,5 @@ pub(super) fn reconstruct_head(
             level_step_px,
         }),
     };
-    Ok((r, figures, port_misses))
+    Ok((r, figures, left_out))
 }

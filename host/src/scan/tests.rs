@@ -159,6 +159,7 @@ fn a_water_scan_is_refused_without_a_port_on_every_head_and_outside_the_sequenti
         turbidity: None,
         restorer: Restorer::Classical,
         psf_sigma_px: 2.0,
+        edge_margin_sigmas: underwater::EDGE_MARGIN_SIGMAS,
     });
     let mut calibration = rig(2, true);
     let err = check_before_capture(&calibration, &config).unwrap_err();
@@ -186,6 +187,7 @@ fn a_water_scan_is_refused_without_a_port_on_every_head_and_outside_the_sequenti
             turbidity: None,
             restorer: Restorer::Classical,
             psf_sigma_px: sigma,
+            edge_margin_sigmas: underwater::EDGE_MARGIN_SIGMAS,
         });
         let err = check_before_capture(&calibration, &bad).unwrap_err();
         assert!(matches!(err, ScanError::Restore(_)), "{sigma}: {err}");
@@ -196,6 +198,7 @@ fn a_water_scan_is_refused_without_a_port_on_every_head_and_outside_the_sequenti
         turbidity: None,
         restorer: Restorer::None,
         psf_sigma_px: f64::NAN,
+        edge_margin_sigmas: underwater::EDGE_MARGIN_SIGMAS,
     });
     check_before_capture(&calibration, &unrestored).unwrap();
 }

@@ -5,7 +5,8 @@
 //! ```text
 //! captured sets (period by period, `steps` frames each)
 //!   --restore_captured (none | classical: Wiener + veil floor)--> decoded as in air
-//!   --through_ports (finest absolute phase -> DMD column -> Snell at both ports)--> cloud
+//!   --through_ports (finest absolute phase -> DMD column -> Snell at both ports)
+//!   --blur edges (pixels within 2 PSF sigmas of a silhouette left out)--> cloud
 //! ```
 //!
 //! In air the pinhole triangulation of the decoded columns would leave a
@@ -20,8 +21,10 @@ use crate::calibration::{Head, RigCalibration};
 use crate::raster::Raster;
 use crate::reconstruct::{Reconstruction, Reconstructor};
 use crate::triangulation::flat_port::{FlatPort, PortTriangulator};
+use crate::underwater::edges;
+pub use crate::underwater::edges::EDGE_MARGIN_SIGMAS;
 use crate::underwater::learned::LearnedRestorer;
-use crate::underwater::{ClassicalRestorer, RestoreParams, Veil};
+use crate::underwater::{ClassicalRestorer, RestoreError, RestoreParams, Veil};
 use crate::unwrap::PixelStatus;
 
 /// Default fringe periods under water, DMD pixels, finest first: seed
@@ -106,6 +109,9 @@ pub struct WaterScan {
     /// The classical restorer's forward-scatter PSF sigma, camera pixels
     /// (the water's sigma per metre times the camera-side water path).
     pub psf_sigma_px: f64,
+    /// Decoded pixels within this many PSF sigmas of a silhouette are left
+    /// out ([`crate::underwater::edges`]; 0 keeps them).
+    pub edge_margin_sigmas: f64,
 }
 
 /// What restoring a scan's frames did.
@@ -128,6 +134,8 @@ pub struct RestoreFigures {
     pub samples: Vec<(Raster<f32>, Raster<f32>)>,
     /// Per head: decoded pixels whose ray or column missed a port (left out).
     pub port_misses: Vec<usize>,
+    /// Per head: decoded pixels within the blur margin of a silhouette (left out).
+    pub blur_edge_px: Vec<usize>,
     /// Per head: the same first fringe frame through clear water (the
     /// ports' refraction only), noise-free, when a simulator can render it;
     /// empty on hardware.
@@ -162,6 +170,14 @@ pub fn check_before_capture(
             .validate()
             .map_err(ScanError::Restore)?;
     }
+    let m = water.edge_margin_sigmas;
+    if !(m.is_finite() && m >= 0.0) {
+        return Err(ScanError::Restore(RestoreError::BadParameter {
+            name: "edge margin (PSF sigmas)",
+            value: m,
+            why: "must be finite and >= 0",
+        }));
+    }
     Ok(())
 }
 
@@ -185,6 +201,7 @@ pub fn restore_captured(
         masked_px: 0,
         samples: Vec::new(),
         port_misses: Vec::new(),
+        blur_edge_px: Vec::new(),
         references: Vec::new(),
     };
     let sets: usize = captured.frames.iter().map(|f| f.len() / steps).sum();
@@ -309,6 +326,52 @@ pub fn through_port(
         }
     }
     Ok((rc.from_maps(maps), misses))
+}
+
+/// One head's decoded pixels a water scan left out after decoding.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LeftOut {
+    /// Pixels whose ray or column missed the port.
+    pub port_misses: usize,
+    /// Pixels within the blur margin of a silhouette.
+    pub blur_edges: usize,
+}
+
+/// Head `head`'s decoded pixels triangulated through its port
+/// ([`through_port`]), then those within `water`'s blur margin of a
+/// silhouette left out ([`crate::underwater::edges`]).
+pub fn finish_head(
+    rc: &Reconstructor,
+    head: &Head,
+    port: &FlatPort,
+    water: &WaterScan,
+    recon: Reconstruction,
+) -> Result<(Reconstruction, LeftOut), ScanError> {
+    let (recon, port_misses) = through_port(rc, head, port, recon)?;
+    let margin = edges::margin_px(water.psf_sigma_px, water.edge_margin_sigmas);
+    if margin == 0 {
+        return Ok((
+            recon,
+            LeftOut {
+                port_misses,
+                blur_edges: 0,
+            },
+        ));
+    }
+    let mut maps = recon.pixels;
+    let blur_edges = edges::mark_blur_edges(&mut maps, margin);
+    tracing::info!(
+        pixels = blur_edges,
+        margin_px = margin,
+        "left out decoded pixels within the forward-scatter blur of a silhouette (--water-edge-margin 0 keeps them)"
+    );
+    Ok((
+        rc.from_maps(maps),
+        LeftOut {
+            port_misses,
+            blur_edges,
+        },
+    ))
 }
 
 /// The picture file of head `tag`'s captured and decoded fringe frame.

@@ -16,11 +16,14 @@
 //!   -> restored set, flagged pixels NaN
 //! ```
 //!
-//! What is not here yet: the learned restorer (seed 002's conditional DDPM),
-//! refraction at the port (a geometric error no restoration removes; the
-//! triangulation's concern), and a per-pixel attenuation gain (it needs the
-//! depth the scan has not measured yet).
+//! Beside it: [`learned`] (seed 002's networks, run on tract), [`edges`]
+//! (decoded pixels within the blur of a silhouette, which no restoration
+//! separates from the other side, left out after decoding) and [`score`].
+//! Refraction at the port is the triangulation's concern
+//! (`triangulation::flat_port`); a per-pixel attenuation gain is not here
+//! (it needs the depth the scan has not measured yet).
 
+pub mod edges;
 pub mod learned;
 pub mod restore;
 pub mod score;

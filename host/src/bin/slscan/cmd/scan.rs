@@ -244,6 +244,11 @@ pub struct Args {
     /// classical restorer takes it.
     #[arg(long)]
     physics_correction: Option<f32>,
+    /// --medium water: decoded pixels within this many forward-scatter PSF
+    /// sigmas of a silhouette are left out (the blur mixes the other side's
+    /// fringe into them; 0 keeps them). Default 2.
+    #[arg(long)]
+    water_edge_margin: Option<f64>,
 }
 
 /// `--medium` values.
@@ -307,9 +312,10 @@ fn medium_for(
         if turbidity.is_some()
             || args.water_psf_sigma_px.is_some()
             || args.physics_correction.is_some()
+            || args.water_edge_margin.is_some()
         {
             anyhow::bail!(
-                "--turbidity, --water-psf-sigma-px and --physics-correction describe water: add --medium water"
+                "--turbidity, --water-psf-sigma-px, --water-edge-margin and --physics-correction describe water: add --medium water"
             );
         }
         return Ok(Medium::Air);
@@ -349,7 +355,7 @@ fn medium_for(
                 model = %path.display(),
                 "learned underwater restoration: decodes where classical cannot (T4 from one \
                  frame), but where classical decodes it is less accurate (sphere radii off by \
-                 100-250 um, README); --restorer classical stays the choice for measurement"
+                 80-330 um, README); --restorer classical stays the choice for measurement"
             );
             Restorer::Learned(std::sync::Arc::new(net.with_physics(physics)))
         }
@@ -366,6 +372,9 @@ fn medium_for(
         turbidity,
         restorer,
         psf_sigma_px,
+        edge_margin_sigmas: args
+            .water_edge_margin
+            .unwrap_or(slscan::scan::underwater::EDGE_MARGIN_SIGMAS),
     }))
 }
 
