@@ -55,13 +55,7 @@ pub fn mark_level_steps(
             }
         }
         if hi > lo * max_ratio {
-            maps.status[i] = PixelStatus::Unreliable;
-            for map in maps.point_m.iter_mut() {
-                map[i] = f32::NAN;
-            }
-            maps.phase_u[i] = f32::NAN;
-            maps.depth_m[i] = f32::NAN;
-            maps.sigma_m[i] = f32::NAN;
+            maps.mark_unreliable(i);
             marked += 1;
         }
     }

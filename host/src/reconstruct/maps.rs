@@ -59,6 +59,19 @@ impl PixelMaps {
         (self.width, self.height)
     }
 
+    /// Leaves pixel `i` out after decoding: status [`PixelStatus::Unreliable`],
+    /// point, phase, depth and sigma NaN (modulation and background stay:
+    /// they were measured).
+    pub fn mark_unreliable(&mut self, i: usize) {
+        self.status[i] = PixelStatus::Unreliable;
+        for map in self.point_m.iter_mut() {
+            map[i] = f32::NAN;
+        }
+        self.phase_u[i] = f32::NAN;
+        self.depth_m[i] = f32::NAN;
+        self.sigma_m[i] = f32::NAN;
+    }
+
     /// Pixel `i`'s values (row-major index).
     ///
     /// # Panics

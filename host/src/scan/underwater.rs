@@ -315,13 +315,7 @@ pub fn through_port(
             }
             None => {
                 misses += 1;
-                maps.status[i] = PixelStatus::Unreliable;
-                for axis in maps.point_m.iter_mut() {
-                    axis[i] = f32::NAN;
-                }
-                maps.depth_m[i] = f32::NAN;
-                maps.sigma_m[i] = f32::NAN;
-                maps.phase_u[i] = f32::NAN;
+                maps.mark_unreliable(i);
             }
         }
     }

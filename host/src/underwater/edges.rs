@@ -66,13 +66,7 @@ pub fn mark_blur_edges(maps: &mut PixelMaps, radius_px: usize) -> usize {
             }
             let j = (ny * w + nx) as usize;
             if maps.status[j] == PixelStatus::Valid {
-                maps.status[j] = PixelStatus::Unreliable;
-                for map in maps.point_m.iter_mut() {
-                    map[j] = f32::NAN;
-                }
-                maps.phase_u[j] = f32::NAN;
-                maps.depth_m[j] = f32::NAN;
-                maps.sigma_m[j] = f32::NAN;
+                maps.mark_unreliable(j);
                 marked += 1;
             }
         }
