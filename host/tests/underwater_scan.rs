@@ -113,6 +113,7 @@ fn restoring_turbid_fringes_and_triangulating_through_the_ports_measures_the_sph
         (Some("T3"), "classical", 0)
     );
     assert_eq!(u.picture_files, vec!["underwater_a.png".to_string()]);
+    assert_eq!((u.restorer_model, u.sampler_steps), (None, None));
     assert_eq!(u.edge_margin_sigmas, 2.0);
     assert_eq!(u.blur_edge_pixels, w.blur_edge_px);
 }

@@ -384,6 +384,11 @@ pub struct UnderwaterReport {
     pub sets_restored: usize,
     /// Frames restored.
     pub frames_restored: usize,
+    /// A learned restorer's ONNX file (null for none and classical).
+    pub restorer_model: Option<String>,
+    /// A learned restorer's sampler steps per tile (1 for a one-step
+    /// network; null for none and classical).
+    pub sampler_steps: Option<usize>,
     /// Network evaluations (0 for the classical restorer: no network).
     pub evaluations: usize,
     /// A diffusion restorer's physics-gradient correction strength after

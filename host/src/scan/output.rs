@@ -304,17 +304,20 @@ pub fn report(scan: &ScanResult) -> ScanReport {
 
 /// A water scan's restoration and port figures for the report.
 fn underwater_report(w: &super::underwater::RestoreFigures) -> UnderwaterReport {
+    let net = match &w.water.restorer {
+        super::underwater::Restorer::Learned(net) => Some(net),
+        _ => None,
+    };
     UnderwaterReport {
         turbidity: w.water.turbidity.map(|t| t.name().to_string()),
         restorer: w.water.restorer.name().into(),
         psf_sigma_px: w.water.psf_sigma_px,
         sets_restored: w.sets,
         frames_restored: w.frames,
+        restorer_model: net.map(|n| n.model().path.display().to_string()),
+        sampler_steps: net.map(|n| n.evaluations_per_tile()),
         evaluations: w.evaluations,
-        physics_correction: match &w.water.restorer {
-            super::underwater::Restorer::Learned(net) => net.physics().map(|p| p.strength),
-            _ => None,
-        },
+        physics_correction: net.and_then(|n| n.physics()).map(|p| p.strength),
         restore_time_ms: w.time_ms,
         masked_pixels: w.masked_px,
         port_misses: w.port_misses.clone(),
