@@ -106,6 +106,9 @@ fn restoring_turbid_fringes_and_triangulating_through_the_ports_measures_the_sph
     let report = slscan::scan::output::write_scan(&dir, &classical, &mut |_| {}).unwrap();
     let picture = image::open(dir.join("underwater_a.png")).unwrap();
     assert_eq!(picture.width(), 3 * 320 + 2 * 8);
+    let page = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(page.contains("<h2>Under water</h2>"), "no water table");
+    assert!(page.contains("2 PSF sigmas"), "no silhouette margin row");
     std::fs::remove_dir_all(&dir).unwrap();
     let u = report.underwater.expect("water report");
     assert_eq!(

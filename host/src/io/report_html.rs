@@ -165,6 +165,64 @@ pub fn escape(s: &str) -> String {
     out
 }
 
+/// A water scan's restoration, silhouette margin and port figures.
+fn underwater_table(u: &super::report::UnderwaterReport) -> Table {
+    let per_head = |v: &[usize]| {
+        v.iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(" / ")
+    };
+    let mut restorer = u.restorer.clone();
+    if let Some(model) = &u.restorer_model {
+        restorer += &format!(
+            " ({model}, {} sampler step(s) per tile, {} evaluations)",
+            u.sampler_steps.unwrap_or(1),
+            u.evaluations
+        );
+    }
+    if let Some(strength) = u.physics_correction {
+        restorer += &format!(", physics correction {strength}");
+    }
+    Table {
+        heading: "Under water".into(),
+        rows: vec![
+            (
+                "turbidity".into(),
+                u.turbidity.clone().unwrap_or_else(|| "not named".into()),
+            ),
+            ("restorer".into(), restorer),
+            (
+                "forward-scatter PSF".into(),
+                format!("sigma {:.2} px", u.psf_sigma_px),
+            ),
+            (
+                "restoration".into(),
+                format!(
+                    "{} sets, {} frames in {:.0} ms; {} frame pixels masked",
+                    u.sets_restored, u.frames_restored, u.restore_time_ms, u.masked_pixels
+                ),
+            ),
+            (
+                "silhouette margin".into(),
+                format!(
+                    "{} PSF sigmas: {} decoded pixels left out per head",
+                    u.edge_margin_sigmas,
+                    per_head(&u.blur_edge_pixels)
+                ),
+            ),
+            (
+                "triangulation".into(),
+                format!(
+                    "{}; {} pixels missed the port per head",
+                    u.triangulation,
+                    per_head(&u.port_misses)
+                ),
+            ),
+        ],
+    }
+}
+
 /// The page of a scan.
 pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
     let mut tables = vec![Table {
@@ -385,6 +443,9 @@ pub fn scan_page(report: &ScanReport, pictures: &[PagePicture]) -> String {
         heading: "Fused cloud".into(),
         rows,
     });
+    if let Some(u) = &report.underwater {
+        tables.push(underwater_table(u));
+    }
     render(&Page {
         title: format!("slscan scan: {}, {}", report.scene, report.mode),
         warnings: report.warnings.clone(),
