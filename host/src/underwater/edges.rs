@@ -82,27 +82,19 @@ fn silhouette_pixels(maps: &PixelMaps, radius_px: usize) -> Vec<usize> {
     let valid = |i: usize| maps.status[i] == PixelStatus::Valid;
     let large = large_undecoded_regions(maps, radius_px);
     let mut seeds = Vec::new();
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let neighbours = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (y > 0).then(|| i - w),
-                (y + 1 < h).then(|| i + w),
-            ];
-            let on_edge = if valid(i) {
-                let d = maps.depth_m[i];
-                neighbours
-                    .into_iter()
-                    .flatten()
-                    .any(|j| valid(j) && (maps.depth_m[j] - d).abs() > JUMP_FRACTION * d.abs())
-            } else {
-                large[i] && neighbours.into_iter().flatten().any(valid)
-            };
-            if on_edge {
-                seeds.push(i);
-            }
+    for (i, &in_large) in large.iter().enumerate() {
+        let neighbours = neighbours4(i, w, h);
+        let on_edge = if valid(i) {
+            let d = maps.depth_m[i];
+            neighbours
+                .into_iter()
+                .flatten()
+                .any(|j| valid(j) && (maps.depth_m[j] - d).abs() > JUMP_FRACTION * d.abs())
+        } else {
+            in_large && neighbours.into_iter().flatten().any(valid)
+        };
+        if on_edge {
+            seeds.push(i);
         }
     }
     seeds
@@ -128,14 +120,7 @@ fn large_undecoded_regions(maps: &PixelMaps, radius_px: usize) -> Vec<bool> {
         stack.push(start);
         while let Some(i) = stack.pop() {
             region.push(i);
-            let (x, y) = (i % w, i / w);
-            let neighbours = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (y > 0).then(|| i - w),
-                (y + 1 < h).then(|| i + w),
-            ];
-            for j in neighbours.into_iter().flatten() {
+            for j in neighbours4(i, w, h).into_iter().flatten() {
                 if !seen[j] && undecoded(j) {
                     seen[j] = true;
                     stack.push(j);
@@ -147,6 +132,17 @@ fn large_undecoded_regions(maps: &PixelMaps, radius_px: usize) -> Vec<bool> {
         }
     }
     large
+}
+
+/// The 4-neighbours of pixel `i` of a `w` x `h` image (None past a border).
+fn neighbours4(i: usize, w: usize, h: usize) -> [Option<usize>; 4] {
+    let (x, y) = (i % w, i / w);
+    [
+        (x > 0).then(|| i - 1),
+        (x + 1 < w).then(|| i + 1),
+        (y > 0).then(|| i - w),
+        (y + 1 < h).then(|| i + w),
+    ]
 }
 
 #[cfg(test)]
