@@ -68,6 +68,18 @@ impl<T> Raster<T> {
     }
 }
 
+/// The 4-neighbours of pixel `i` (row-major) of a `w` x `h` image, left,
+/// right, up, down; `None` past a border.
+pub(crate) fn neighbours4(i: usize, w: usize, h: usize) -> [Option<usize>; 4] {
+    let (x, y) = (i % w, i / w);
+    [
+        (x > 0).then(|| i - 1),
+        (x + 1 < w).then(|| i + 1),
+        (y > 0).then(|| i - w),
+        (y + 1 < h).then(|| i + w),
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -343,13 +343,13 @@ pub fn finish_head(
 ) -> Result<(Reconstruction, LeftOut), ScanError> {
     let (recon, port_misses) = through_port(rc, head, port, recon)?;
     let margin = edges::margin_px(water.psf_sigma_px, water.edge_margin_sigmas);
-    if margin == 0 && water.edge_margin_sigmas > 0.0 {
-        tracing::warn!(
-            "no forward-scatter PSF sigma known: pixels near silhouettes are kept (biased by \
-             the blur); give --water-psf-sigma-px to leave them out"
-        );
-    }
     if margin == 0 {
+        if water.edge_margin_sigmas > 0.0 {
+            tracing::warn!(
+                "no forward-scatter PSF sigma known: pixels near silhouettes are kept (biased by \
+                 the blur); give --water-psf-sigma-px to leave them out"
+            );
+        }
         return Ok((
             recon,
             LeftOut {

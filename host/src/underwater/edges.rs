@@ -20,6 +20,7 @@
 //! between neighbouring decoded pixels of more than [`JUMP_FRACTION`] of
 //! their depth.
 
+use crate::raster::neighbours4;
 use crate::reconstruct::PixelMaps;
 use crate::unwrap::PixelStatus;
 
@@ -132,17 +133,6 @@ fn large_undecoded_regions(maps: &PixelMaps, radius_px: usize) -> Vec<bool> {
         }
     }
     large
-}
-
-/// The 4-neighbours of pixel `i` of a `w` x `h` image (None past a border).
-fn neighbours4(i: usize, w: usize, h: usize) -> [Option<usize>; 4] {
-    let (x, y) = (i % w, i / w);
-    [
-        (x > 0).then(|| i - 1),
-        (x + 1 < w).then(|| i + 1),
-        (y > 0).then(|| i - w),
-        (y + 1 < h).then(|| i + w),
-    ]
 }
 
 #[cfg(test)]

@@ -15,7 +15,7 @@ use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 use super::{AbsolutePhase, PixelStatus, UnwrapError};
-use crate::raster::Raster;
+use crate::raster::{neighbours4, Raster};
 
 #[derive(PartialEq)]
 struct Edge {
@@ -84,17 +84,7 @@ pub fn unwrap_quality_guided(
     phase.data[start] = wrapped.data[start] + tau * seed.order as f32;
     status.data[start] = PixelStatus::Valid;
     let mut heap = BinaryHeap::new();
-    let neighbours = |i: usize| {
-        let (x, y) = (i % width, i / width);
-        [
-            (x > 0).then(|| i - 1),
-            (x + 1 < width).then(|| i + 1),
-            (y > 0).then(|| i - width),
-            (y + 1 < height).then(|| i + width),
-        ]
-        .into_iter()
-        .flatten()
-    };
+    let neighbours = |i: usize| neighbours4(i, width, height).into_iter().flatten();
     let push = |heap: &mut BinaryHeap<Edge>, status: &Raster<PixelStatus>, from: usize| {
         for to in neighbours(from) {
             if status.data[to] == PixelStatus::Unreached {

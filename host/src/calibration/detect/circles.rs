@@ -20,6 +20,7 @@ use nalgebra::{Matrix2, Point2};
 use super::filter::{gaussian_blur, wide_blur, Plane};
 use super::{check_image, grid, plane_of, DetectError};
 use crate::calibration::board::{CircleGrid, GrayImage};
+use crate::raster::neighbours4;
 
 /// Pixels of each 4-connected component of `mask` (components touching the
 /// image border are dropped: a cut circle has a wrong centre).
@@ -38,24 +39,13 @@ fn components(mask: &[bool], w: usize, h: usize) -> Vec<Vec<usize>> {
             pixels.push(k);
             let (x, y) = (k % w, k / w);
             touches_border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-            let mut visit = |n: usize| {
+            let visit = |n: usize| {
                 if mask[n] && !seen[n] {
                     seen[n] = true;
                     queue.push_back(n);
                 }
             };
-            if x > 0 {
-                visit(k - 1);
-            }
-            if x + 1 < w {
-                visit(k + 1);
-            }
-            if y > 0 {
-                visit(k - w);
-            }
-            if y + 1 < h {
-                visit(k + w);
-            }
+            neighbours4(k, w, h).into_iter().flatten().for_each(visit);
         }
         if !touches_border {
             out.push(pixels);
