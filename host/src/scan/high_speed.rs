@@ -29,7 +29,7 @@ use crate::highspeed::{
     ZocrNet,
 };
 use crate::point_cloud::PointCloud;
-use crate::raster::Raster;
+use crate::raster::{neighbours4, Raster};
 use crate::reconstruct::{ReconstructConfig, Reconstructor};
 use crate::rig::{require_clean, Board, Camera, Led, Projector, WHITE};
 use protocol::plan::examples::{multiplexed_24_at_5khz, FAST_FRAME_NS};
@@ -623,16 +623,9 @@ fn interior_pixels(object: &[u16], width: usize, margin: usize) -> Vec<bool> {
     // A pixel is an edge when a 4-neighbour differs or it is on the border.
     let edge: Vec<bool> = (0..width * height)
         .map(|i| {
-            let (x, y) = (i % width, i / width);
-            let o = object[i];
-            x == 0
-                || y == 0
-                || x + 1 == width
-                || y + 1 == height
-                || object[i - 1] != o
-                || object[i + 1] != o
-                || object[i - width] != o
-                || object[i + width] != o
+            neighbours4(i, width, height)
+                .into_iter()
+                .any(|n| n.is_none_or(|j| object[j] != object[i]))
         })
         .collect();
     // Grow the edges by `margin` along rows, then along columns.
