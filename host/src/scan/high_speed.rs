@@ -124,11 +124,24 @@ pub struct InteriorTruth {
 /// demultiplexer's windows are about this wide across a fringe (+-2 sigma).
 pub const INTERIOR_MARGIN_PX: usize = 10;
 
-/// One sphere fitted at one instant.
+/// One sphere fitted at one instant: over every decoded point the truth
+/// gives it, and over its interior points only.
 #[derive(Clone, Debug, PartialEq)]
 pub struct InstantSphere {
     /// The sphere's name in the truth.
     pub name: String,
+    /// The fit of all its decoded points.
+    pub whole: SphereFit,
+    /// The fit of its decoded points at least [`INTERIOR_MARGIN_PX`] from
+    /// any other object, where the demultiplexer's windows see the sphere
+    /// alone (`None` under [`MIN_SPHERE_POINTS`]): it tells the wrong fringe
+    /// orders at the rims from the shape error inside them.
+    pub interior: Option<SphereFit>,
+}
+
+/// A sphere fitted to some of its decoded points, against the truth.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SphereFit {
     /// Points fitted.
     pub points: usize,
     /// RMS of the radial residuals, metres.
@@ -565,25 +578,33 @@ fn measure_instant(
     let spheres = spheres
         .iter()
         .filter_map(|s| {
-            let points: Vec<Point3<f64>> = depth
-                .data
-                .iter()
-                .enumerate()
-                .filter(|(i, z)| z.is_finite() && truth.object.get(*i) == Some(&s.object))
-                .map(|(i, &z)| Point3::from(point(i, z).map(f64::from)))
-                .collect();
-            if points.len() < MIN_SPHERE_POINTS {
-                return None;
-            }
-            let fit = fit_sphere(&points)?;
-            let centre_true = cam * Point3::from(s.centre_m);
+            let fit = |keep: &dyn Fn(usize) -> bool| {
+                let points: Vec<Point3<f64>> = depth
+                    .data
+                    .iter()
+                    .enumerate()
+                    .filter(|&(i, z)| {
+                        z.is_finite() && truth.object.get(i) == Some(&s.object) && keep(i)
+                    })
+                    .map(|(i, &z)| Point3::from(point(i, z).map(f64::from)))
+                    .collect();
+                if points.len() < MIN_SPHERE_POINTS {
+                    return None;
+                }
+                let fit = fit_sphere(&points)?;
+                let centre_true = cam * Point3::from(s.centre_m);
+                Some(SphereFit {
+                    points: points.len(),
+                    fit_rmse_m: fit.rms_m,
+                    radius_error_m: fit.radius_m - s.radius_m,
+                    centre_error_m: (fit.centre_m - centre_true).norm(),
+                    centre_m: fit.centre_m.coords.into(),
+                })
+            };
             Some(InstantSphere {
                 name: s.name.clone(),
-                points: points.len(),
-                fit_rmse_m: fit.rms_m,
-                radius_error_m: fit.radius_m - s.radius_m,
-                centre_error_m: (fit.centre_m - centre_true).norm(),
-                centre_m: fit.centre_m.coords.into(),
+                whole: fit(&|_| true)?,
+                interior: fit(&|i| interior.get(i).copied().unwrap_or(false)),
             })
         })
         .collect();
@@ -695,6 +716,72 @@ mod tests {
         // The background is a strip at most 4 px wide between the object and
         // the image border: none of it is interior.
         assert!(kept.iter().all(|&(x, y)| object[y * w + x] == 1));
+    }
+
+    #[test]
+    fn the_interior_fit_leaves_out_wrong_rims() {
+        // A 60x60 view (1 mm per pixel, orthographic) of a 25 mm sphere 0.5 m
+        // away before a background; the outer 5 px of its disc decoded 5 mm
+        // too deep, as wrong fringe orders at a rim are.
+        let (w, radius) = (60usize, 0.025);
+        let xy = |i: usize| {
+            [
+                ((i % w) as f64 - 30.0) * 1e-3,
+                ((i / w) as f64 - 30.0) * 1e-3,
+            ]
+        };
+        let on_sphere = |i: usize| xy(i)[0].hypot(xy(i)[1]) < radius;
+        let true_z =
+            |i: usize| 0.5 - (radius * radius - xy(i)[0].powi(2) - xy(i)[1].powi(2)).sqrt();
+        let n = w * w;
+        let truth = CameraTruth {
+            width: w,
+            height: w,
+            camera_from_world: Isometry3::identity(),
+            point_m: (0..n)
+                .map(|i| {
+                    [
+                        xy(i)[0] as f32,
+                        xy(i)[1] as f32,
+                        if on_sphere(i) { true_z(i) } else { 0.6 } as f32,
+                    ]
+                })
+                .collect(),
+            normal: vec![[0.0, 0.0, -1.0]; n],
+            object: (0..n).map(|i| if on_sphere(i) { 0 } else { 1 }).collect(),
+            own_object: (0..n).map(on_sphere).collect(),
+            overlap: vec![false; n],
+        };
+        let depth = Raster {
+            width: w,
+            height: w,
+            data: (0..n)
+                .map(|i| {
+                    let r = xy(i)[0].hypot(xy(i)[1]);
+                    let rim = if r > radius - 0.005 { 0.005 } else { 0.0 };
+                    if on_sphere(i) {
+                        (true_z(i) + rim) as f32
+                    } else {
+                        f32::NAN
+                    }
+                })
+                .collect(),
+        };
+        let sphere = TrueSphere {
+            name: "s".into(),
+            object: 0,
+            centre_m: [0.0, 0.0, 0.5],
+            radius_m: radius,
+        };
+        let point = |i: usize, z: f32| [xy(i)[0] as f32, xy(i)[1] as f32, z];
+        let t = measure_instant(&point, &depth, &truth, &[sphere]);
+        let s = &t.spheres[0];
+        let inner = s.interior.as_ref().expect("an interior fit");
+        assert!(s.whole.fit_rmse_m > 5e-4, "whole {:?}", s.whole);
+        assert!(inner.points < s.whole.points);
+        // Only the f32 rounding of the points is left inside.
+        assert!(inner.fit_rmse_m < 2e-6, "interior {inner:?}");
+        assert!(inner.radius_error_m.abs() < 1e-5, "interior {inner:?}");
     }
 
     #[test]

@@ -11,7 +11,7 @@ use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, Frame, RgbaImage};
 use serde::Serialize;
 
-use super::high_speed::{HighSpeedResult, InstantSphere, InstantTruth};
+use super::high_speed::{HighSpeedResult, InstantSphere, InstantTruth, SphereFit};
 use super::output::OutputError;
 use crate::io::images::{encode_rgb_png, save_bytes};
 use crate::io::outputs::OutputSet;
@@ -122,11 +122,22 @@ pub struct ConventionalReport {
     pub truth: TruthReport,
 }
 
-/// A sphere fitted at one instant.
+/// A sphere fitted at one instant: all its decoded points, and its interior's.
 #[derive(Clone, Debug, Serialize)]
 pub struct SphereReport {
     /// Name in the truth.
     pub name: String,
+    /// The fit of all its decoded points.
+    #[serde(flatten)]
+    pub whole: SphereFitReport,
+    /// The fit of its interior points (at least `interior_margin_px` from
+    /// another object); absent under the minimum point count.
+    pub interior: Option<SphereFitReport>,
+}
+
+/// One sphere fit's figures.
+#[derive(Clone, Debug, Serialize)]
+pub struct SphereFitReport {
     /// Points.
     pub points: usize,
     /// Fit RMSE, micrometres.
@@ -170,12 +181,16 @@ pub struct HighSpeedReport {
 }
 
 fn sphere_report(s: &InstantSphere) -> SphereReport {
+    let fit = |f: &SphereFit| SphereFitReport {
+        points: f.points,
+        fit_rmse_um: f.fit_rmse_m * 1e6,
+        radius_error_um: f.radius_error_m * 1e6,
+        centre_error_um: f.centre_error_m * 1e6,
+    };
     SphereReport {
         name: s.name.clone(),
-        points: s.points,
-        fit_rmse_um: s.fit_rmse_m * 1e6,
-        radius_error_um: s.radius_error_m * 1e6,
-        centre_error_um: s.centre_error_m * 1e6,
+        whole: fit(&s.whole),
+        interior: s.interior.as_ref().map(fit),
     }
 }
 

@@ -168,15 +168,15 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
                 .iter()
                 .flat_map(|i| i.truth.spheres.iter().filter(|s| s.name == name))
                 .collect();
-            let f = |g: fn(&slscan::scan::high_speed_output::SphereReport) -> f64| {
-                mean(&fits.iter().map(|s| g(s)).collect::<Vec<_>>())
-            };
+            let whole: Vec<_> = fits.iter().map(|s| &s.whole).collect();
+            let interior: Vec<_> = fits.iter().filter_map(|s| s.interior.as_ref()).collect();
             println!(
-                "  sphere {name}: fitted at {} instants, fit RMSE {:.1} um, radius error {:+.1} um, centre error {:.1} um (means)",
+                "  sphere {name}: fitted at {} instants, {}; interior (>= {} px from another object) at {}, {} (medians over the instants)",
                 fits.len(),
-                f(|s| s.fit_rmse_um),
-                f(|s| s.radius_error_um),
-                f(|s| s.centre_error_um)
+                fit_figures(&whole),
+                slscan::scan::high_speed::INTERIOR_MARGIN_PX,
+                interior.len(),
+                fit_figures(&interior),
             );
         }
     }
@@ -194,4 +194,20 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
         );
     }
     println!("wrote {}", out.join("high_speed.ply").display());
+}
+
+/// Median fit RMSE, radius and centre errors of `fits` over the instants: a
+/// cap too flat to fit gives a radius metres off, which a mean would show.
+fn fit_figures(fits: &[&slscan::scan::high_speed_output::SphereFitReport]) -> String {
+    let median = |g: fn(&slscan::scan::high_speed_output::SphereFitReport) -> f64| {
+        let mut v: Vec<f64> = fits.iter().map(|f| g(f)).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    format!(
+        "fit RMSE {:.1} um, radius error {:+.1} um, centre error {:.1} um",
+        median(|f| f.fit_rmse_um),
+        median(|f| f.radius_error_um),
+        median(|f| f.centre_error_um)
+    )
 }
