@@ -130,7 +130,8 @@ pub struct SphereReport {
     /// The fit of all its decoded points.
     #[serde(flatten)]
     pub whole: SphereFitReport,
-    /// The fit of its interior points (at least `interior_margin_px` from
+    /// The fit of its interior points (at least
+    /// [`INTERIOR_MARGIN_PX`](super::high_speed::INTERIOR_MARGIN_PX) from
     /// another object); absent under the minimum point count.
     pub interior: Option<SphereFitReport>,
 }

@@ -199,6 +199,9 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
 /// Median fit RMSE, radius and centre errors of `fits` over the instants: a
 /// cap too flat to fit gives a radius metres off, which a mean would show.
 fn fit_figures(fits: &[&slscan::scan::high_speed_output::SphereFitReport]) -> String {
+    if fits.is_empty() {
+        return "no fit".into();
+    }
     let median = |g: fn(&slscan::scan::high_speed_output::SphereFitReport) -> f64| {
         let mut v: Vec<f64> = fits.iter().map(|f| g(f)).collect();
         v.sort_by(f64::total_cmp);
