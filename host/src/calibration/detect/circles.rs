@@ -37,15 +37,16 @@ fn components(mask: &[bool], w: usize, h: usize) -> Vec<Vec<usize>> {
         seen[start] = true;
         while let Some(k) = queue.pop_front() {
             pixels.push(k);
-            let (x, y) = (k % w, k / w);
-            touches_border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+            let neighbours = neighbours4(k, w, h);
+            // A pixel on the border is one with a neighbour missing.
+            touches_border |= neighbours.contains(&None);
             let visit = |n: usize| {
                 if mask[n] && !seen[n] {
                     seen[n] = true;
                     queue.push_back(n);
                 }
             };
-            neighbours4(k, w, h).into_iter().flatten().for_each(visit);
+            neighbours.into_iter().flatten().for_each(visit);
         }
         if !touches_border {
             out.push(pixels);

@@ -205,7 +205,7 @@ fn fit_figures(fits: &[&slscan::scan::high_speed_output::SphereFitReport]) -> St
     let median = |g: fn(&slscan::scan::high_speed_output::SphereFitReport) -> f64| {
         let mut v: Vec<f64> = fits.iter().map(|f| g(f)).collect();
         v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+        v[v.len() / 2]
     };
     format!(
         "fit RMSE {:.1} um, radius error {:+.1} um, centre error {:.1} um",
