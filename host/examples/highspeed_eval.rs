@@ -11,6 +11,9 @@
 //! With `--fdd models/highspeed_fdd.onnx`, also seed 001's third network
 //! (FDD-Net) correcting the analytic demodulation's phases.
 //!
+//! The analytic decoder is also run with its demodulation refined once and
+//! twice (`DemuxOptions::refinements`, the scan's `--demod-refinements`).
+//!
 //! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--samples N] [--zocr PATH] [--fdd PATH]`
 //! (`--samples`: points on each pixel's epipolar segment, the decoder's default unless given)
 
@@ -140,13 +143,14 @@ fn main() -> anyhow::Result<()> {
     let view = |l: usize| [&flats0[l][0][..], &flats0[l][1][..], &flats0[l][2][..]];
     let crosstalk = crosstalk_from_flats([view(0), view(1), view(2)], 0.995)?;
     println!("crosstalk measured from scene 0's three LED flats (channel <- LED): {crosstalk:.3}");
-    // (name, reference carrier, crosstalk, zero-order removal, learned stage)
+    // (name, reference carrier, crosstalk, zero-order removal, refinements, learned stage)
     let mut variants = vec![
         (
             "linear carrier (FTP-like), raw channels",
             false,
             false,
             false,
+            0,
             Learned::No,
         ),
         (
@@ -154,6 +158,7 @@ fn main() -> anyhow::Result<()> {
             false,
             true,
             true,
+            0,
             Learned::No,
         ),
         (
@@ -161,6 +166,7 @@ fn main() -> anyhow::Result<()> {
             true,
             false,
             true,
+            0,
             Learned::No,
         ),
         (
@@ -168,6 +174,7 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             false,
+            0,
             Learned::No,
         ),
         (
@@ -175,6 +182,23 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             true,
+            0,
+            Learned::No,
+        ),
+        (
+            "analytic, demodulated again by its own phase (1 refinement)",
+            true,
+            true,
+            true,
+            1,
+            Learned::No,
+        ),
+        (
+            "analytic, demodulated twice more (2 refinements)",
+            true,
+            true,
+            true,
+            2,
             Learned::No,
         ),
     ];
@@ -184,6 +208,7 @@ fn main() -> anyhow::Result<()> {
             true,
             false,
             true,
+            0,
             Learned::Zocr,
         ));
     }
@@ -193,6 +218,7 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             true,
+            0,
             Learned::Fdd,
         ));
     }
@@ -252,12 +278,13 @@ fn main() -> anyhow::Result<()> {
         "| row FTP per pattern (slscan::phase::ftp) | {:.4} | | | |",
         ftp.mae()
     );
-    for (name, reference, xtalk, zero, learned) in variants {
+    for (name, reference, xtalk, zero, refinements, learned) in variants {
         let config = DecoderConfig {
             demux: DemuxOptions {
                 crosstalk: xtalk.then_some(crosstalk),
                 zero_order_removal: zero,
                 reference_demodulation: reference,
+                refinements,
                 ..DemuxOptions::default()
             },
             samples: epipolar_samples,
@@ -267,7 +294,7 @@ fn main() -> anyhow::Result<()> {
         match learned {
             Learned::No => {}
             Learned::Zocr => decoder = decoder.with_zocr(zocr.clone().context("no --zocr")?),
-            Learned::Fdd => decoder = decoder.with_fdd(fdd.clone().context("no --fdd")?),
+            Learned::Fdd => decoder = decoder.with_fdd(fdd.clone().context("no --fdd")?)?,
         }
         let mut tally = Tally::default();
         let (mut decoded, mut right, mut lit) = (0usize, 0usize, 0usize);

@@ -469,6 +469,48 @@ fn a_water_edge_margin_in_air_or_negative_is_refused_before_capture() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `--demod-refinements` belongs to `--mode high-speed` and cannot join
+/// `--fdd-model` (which learnt the single pass): both refused before
+/// anything is made.
+#[cfg(feature = "sim")]
+#[test]
+fn demodulation_refinements_outside_high_speed_or_with_fdd_net_are_refused() {
+    let dir = tmp("refinements");
+    let out = dir.join("out");
+    let scan = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_slscan"))
+            .args([
+                "scan",
+                "--sim",
+                "--scene",
+                "spheres",
+                "--demod-refinements",
+                "1",
+            ])
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    fails_with(
+        &scan(&["--mode", "sequential"]),
+        "--demod-refinements is for --mode high-speed only",
+    );
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_fdd.onnx");
+    fails_with(
+        &scan(&[
+            "--mode",
+            "high-speed",
+            "--fdd-model",
+            shipped.to_str().unwrap(),
+        ]),
+        "cannot be used with",
+    );
+    assert!(!out.exists(), "a refused scan made its output folder");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `--zocr-model` and `--fdd-model` are seed 001's networks: refused
 /// outside `--mode high-speed`, and a file that is not a fitting model
 /// fails the scan before capture, naming the file, with the earlier run's

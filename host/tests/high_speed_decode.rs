@@ -267,6 +267,28 @@ fn a_zocr_net_that_does_not_fit_the_set_is_refused_at_load() {
     }
 }
 
+/// FDD-Net learnt the single-pass demodulation's errors: a decoder that
+/// refines its demodulation refuses it, with the reason.
+#[test]
+fn an_fdd_net_is_refused_by_a_refining_decoder() {
+    let set = PatternSet::seed001(DMD).unwrap();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_fdd.onnx");
+    let net = FddNet::load(&shipped, &set).unwrap();
+    let head = high_speed_head(64, 48, DMD);
+    let decoder = |refinements| {
+        let mut config = DecoderConfig::default();
+        config.demux.refinements = refinements;
+        Decoder::new(set.clone(), &head, config).unwrap()
+    };
+    assert!(decoder(0).with_fdd(net.clone()).is_ok());
+    let err = decoder(1).with_fdd(net).err().expect("refused");
+    assert!(
+        matches!(err, HighSpeedError::BadConfig { .. })
+            && err.to_string().contains("refines them 1 time(s)"),
+        "{err}"
+    );
+}
+
 #[test]
 fn an_fdd_net_that_does_not_fit_the_set_is_refused_at_load() {
     let set = PatternSet::seed001(DMD).unwrap();

@@ -198,10 +198,19 @@ impl Decoder {
     }
 
     /// The same decoder with FDD-Net correcting every pattern's
-    /// demodulated phase before unwrapping.
-    pub fn with_fdd(mut self, net: FddNet) -> Self {
+    /// demodulated phase before unwrapping. Refused after refined
+    /// demodulations: the network learnt the single pass's errors.
+    pub fn with_fdd(mut self, net: FddNet) -> Result<Self, HighSpeedError> {
+        let refinements = self.config.demux.refinements;
+        if refinements > 0 {
+            return Err(HighSpeedError::BadConfig {
+                why: format!(
+                    "FDD-Net corrects the single-pass demodulation's phases; this decoder refines them {refinements} time(s)"
+                ),
+            });
+        }
         self.fdd = Some(net);
-        self
+        Ok(self)
     }
 
     /// The FDD-Net in use, if any.

@@ -39,6 +39,12 @@ pub struct DemuxOptions {
     pub reference_demodulation: bool,
     /// Largest share of an interfering carrier the window lets through.
     pub leak: f64,
+    /// Demodulations after the first, each by the phase the one before found
+    /// instead of the reference's: what is left to filter is the surface's
+    /// phase minus the last estimate, so the window's flattening of it shrinks
+    /// with every pass (to first order its loss `1 - H` becomes
+    /// `(1 - H)^(refinements + 1)`), and its wider pass band lets in more noise.
+    pub refinements: u32,
 }
 
 impl Default for DemuxOptions {
@@ -48,6 +54,7 @@ impl Default for DemuxOptions {
             zero_order_removal: true,
             reference_demodulation: true,
             leak: 0.01,
+            refinements: 0,
         }
     }
 }
@@ -288,7 +295,30 @@ impl Demultiplexer {
             spectrum,
         } = scratch;
         self.carrier_phase(m, carrier);
+        let mut phase = filled_vec(w * h, 0.0);
+        let mut modulation = filled_vec(w * h, 0.0);
         simd_run!(self.simd, shift_to_baseband(signal, carrier, image));
+        self.low_pass(m, image, spectrum);
+        simd_run!(
+            self.simd,
+            phase_and_modulation(image, carrier, &mut phase, &mut modulation)
+        );
+        // The modulation stays the first pass's: the decoder's gate on it was
+        // set for that pass, and a refined window holds more of each fringe,
+        // which let in pixels the gate keeps out (6 held-out scenes: 3 % more
+        // decoded, 1 % fewer of them unwrapped right).
+        for _ in 0..self.options.refinements {
+            carrier.copy_from_slice(&phase);
+            simd_run!(self.simd, shift_to_baseband(signal, carrier, image));
+            self.low_pass(m, image, spectrum);
+            simd_run!(self.simd, phase_on_carrier(image, carrier, &mut phase));
+        }
+        (phase, modulation)
+    }
+
+    /// Pattern `m`'s window applied to a baseband `image` in place (`spectrum`
+    /// is scratch).
+    fn low_pass(&self, m: usize, image: &mut [Complex32], spectrum: &mut [Complex32]) {
         let win = &self.windows[m];
         let n = win.carrier[0].hypot(win.carrier[1]).max(f32::EPSILON);
         let (ax, ay) = (win.carrier[0] / n, win.carrier[1] / n);
@@ -304,13 +334,6 @@ impl Demultiplexer {
             ka * along * along + kc * across * across
         });
         self.fft.inverse_band(spectrum, image, max_kx);
-        let mut phase = filled_vec(w * h, 0.0);
-        let mut modulation = filled_vec(w * h, 0.0);
-        simd_run!(
-            self.simd,
-            phase_and_modulation(image, carrier, &mut phase, &mut modulation)
-        );
-        (phase, modulation)
     }
 
     /// Pattern `m`'s carrier phase at every pixel into `out` (radians in
@@ -391,6 +414,14 @@ fn phase_and_modulation(
     for (((z, &c), p), b) in image.iter().zip(carrier).zip(phase).zip(modulation) {
         *p = wrap_pi(c + fast_atan2(z.im, z.re));
         *b = 2.0 * (z.re * z.re + z.im * z.im).sqrt();
+    }
+}
+
+/// The filtered baseband back on its carrier: wrapped phase alone.
+#[inline(always)]
+fn phase_on_carrier(image: &[Complex32], carrier: &[f32], phase: &mut [f32]) {
+    for ((z, &c), p) in image.iter().zip(carrier).zip(phase) {
+        *p = wrap_pi(c + fast_atan2(z.im, z.re));
     }
 }
 
@@ -537,6 +568,72 @@ mod tests {
         let mean = mae_sum / set.patterns().len() as f32;
         assert!(mean < 0.03, "mean MAE over the 24 patterns {mean} rad");
         assert!((out.zero_order[1][128 * w + 160] - 8.0 * 0.35).abs() < 0.05);
+    }
+
+    /// Each LED's 8 patterns on a bump before a flat reference: the bump
+    /// shifts what each pixel sees on the DMD along u by up to 4 px, a
+    /// Gaussian 12 px wide (a small curved part's parallax). The windows are
+    /// about as wide as the bump (across their carriers ~30 px), so the single
+    /// pass keeps a fraction H of its phase; each refinement leaves (1 - H)
+    /// of what the pass before missed.
+    #[test]
+    fn each_refinement_flattens_a_bump_less() {
+        let set = PatternSet::seed001((1280, 800)).unwrap();
+        let (w, h) = (256, 192);
+        let reference = identity_reference(w, h);
+        let (cx, cy, sigma) = (128.0, 96.0, 12.0);
+        let truth = |p: &crate::highspeed::SetPattern, i: usize| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let r2 = (x - cx).powi(2) + (y - cy).powi(2);
+            let q = reference[i];
+            PatternSet::phase_at(p, q[0] + 4.0 * (-0.5 * r2 / (sigma * sigma)).exp(), q[1])
+        };
+        let mut channels = vec![vec![0.0f32; w * h]; 3];
+        for p in set.patterns() {
+            for (i, v) in channels[p.colour].iter_mut().enumerate() {
+                *v += (0.7 * (0.5 + 0.5 * truth(p, i).cos())) as f32;
+            }
+        }
+        // MAE within one sigma of the bump's top, all patterns.
+        let bump_mae = |refinements: u32| {
+            let options = DemuxOptions {
+                refinements,
+                ..DemuxOptions::default()
+            };
+            let demux = Demultiplexer::new(&set, w, h, reference.clone(), options).unwrap();
+            let out = demux.demultiplex([&channels[0], &channels[1], &channels[2]]);
+            let (mut sum, mut n) = (0.0f64, 0usize);
+            for p in set.patterns() {
+                for i in 0..w * h {
+                    let (x, y) = ((i % w) as f64, (i / w) as f64);
+                    if (x - cx).hypot(y - cy) < sigma {
+                        let e = f64::from(out.wrapped[p.index][i]) - truth(p, i);
+                        sum += f64::from(wrap_pi(e as f32).abs());
+                        n += 1;
+                    }
+                }
+            }
+            (sum / n as f64, out.modulation)
+        };
+        let (single, modulation) = bump_mae(0);
+        let (once, once_modulation) = bump_mae(1);
+        let (twice, _) = bump_mae(2);
+        // Measured: 0.497, 0.413, 0.371 rad.
+        println!("bump MAE: single pass {single:.4} rad, refined once {once:.4}, twice {twice:.4}");
+        assert!(
+            single > 0.3,
+            "the single pass should flatten the bump: {single} rad"
+        );
+        assert!(
+            once < 0.9 * single,
+            "refined once {once} rad, single {single} rad"
+        );
+        assert!(
+            twice < 0.95 * once,
+            "refined twice {twice} rad, once {once} rad"
+        );
+        // The decoder's gate reads the first pass's modulation either way.
+        assert_eq!(modulation, once_modulation);
     }
 
     #[test]

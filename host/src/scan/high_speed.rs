@@ -190,6 +190,9 @@ pub struct HighSpeedResult {
     pub zocr_model: Option<PathBuf>,
     /// FDD-Net's file when it corrected the demodulated phases.
     pub fdd_model: Option<PathBuf>,
+    /// Demodulations after the first, each by the last one's phase
+    /// ([`crate::highspeed::DemuxOptions::refinements`]).
+    pub demodulation_refinements: u32,
 }
 
 /// Minimum points on a sphere for a fit at one instant.
@@ -218,7 +221,7 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
     }
     if let Some(net) = &config.fdd {
         check_stage(net, &set, decoder.size())?;
-        decoder = decoder.with_fdd(net.clone());
+        decoder = decoder.with_fdd(net.clone())?;
     }
     let clock_hz = rig
         .limits()
@@ -341,6 +344,7 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
         conventional: None,
         zocr_model: decoder.zocr().map(|n| n.path().to_path_buf()),
         fdd_model: decoder.fdd().map(|n| n.path().to_path_buf()),
+        demodulation_refinements: config.decoder.demux.refinements,
     })
 }
 

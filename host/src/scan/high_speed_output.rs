@@ -169,6 +169,9 @@ pub struct HighSpeedReport {
     pub zocr_model: Option<String>,
     /// The third stage's network file, when FDD-Net ran.
     pub fdd_model: Option<String>,
+    /// Demodulations after the first, each by the last one's phase (0: the
+    /// single pass).
+    pub demodulation_refinements: u32,
     /// The measured channel <- LED crosstalk, row per camera channel.
     pub crosstalk: [[f64; 3]; 3],
     /// Seconds decoding each frame took.
@@ -238,6 +241,7 @@ pub fn report(scan: &HighSpeedResult) -> HighSpeedReport {
         },
         zocr_model: scan.zocr_model.as_ref().map(|p| p.display().to_string()),
         fdd_model: scan.fdd_model.as_ref().map(|p| p.display().to_string()),
+        demodulation_refinements: scan.demodulation_refinements,
         crosstalk: [0, 1, 2].map(|r| [0, 1, 2].map(|c| m[(r, c)])),
         decode_s: scan.frames.iter().map(|f| f.decode_s).collect(),
         calibration_is_true: scan.calibration_is_true,

@@ -157,6 +157,18 @@ pub struct Args {
     /// pattern set before any capture.
     #[arg(long, value_name = "ONNX")]
     fdd_model: Option<PathBuf>,
+    /// --mode high-speed: demodulate each pattern this many more times, each
+    /// time by the phase the pass before found: small curved parts keep their
+    /// shape (the window flattens less of them) at the cost of more noise
+    /// (README, high-speed section). Not with --fdd-model, which learnt the
+    /// single pass's errors.
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 0,
+        conflicts_with = "fdd_model"
+    )]
+    demod_refinements: u32,
     /// Drive the simulated projectors through this DMD controller's USB HID
     /// driver and hil-sim's byte-level controller (--sim; default: patterns
     /// go straight to the simulated DMDs).
@@ -511,6 +523,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.fdd_model.is_none() || matches!(args.mode, ModeArg::HighSpeed),
         "--fdd-model is seed 001's network for --mode high-speed only"
     );
+    anyhow::ensure!(
+        args.demod_refinements == 0 || matches!(args.mode, ModeArg::HighSpeed),
+        "--demod-refinements is for --mode high-speed only"
+    );
     let mode = match args.mode {
         ModeArg::Sequential => Mode::Sequential,
         ModeArg::Simultaneous => Mode::Simultaneous,
@@ -526,6 +542,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 conventional: args.compare_conventional,
                 zocr_model: args.zocr_model.as_deref(),
                 fdd_model: args.fdd_model.as_deref(),
+                demod_refinements: args.demod_refinements,
             })
         }
         ModeArg::HighSpeed => return high_speed_hardware(&args),
@@ -593,6 +610,7 @@ fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
         .with_context(|| format!("reading the calibration {}", calibration_path.display()))?;
     let mut config = HighSpeedConfig::new(&format!("rig file {}", calibration_path.display()));
     config.frames = args.frames;
+    config.decoder.demux.refinements = args.demod_refinements;
     let failed = || {
         format!(
             "high-speed scan into {} failed; nothing written",

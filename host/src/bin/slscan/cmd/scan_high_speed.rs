@@ -30,6 +30,8 @@ pub struct Options<'a> {
     pub zocr_model: Option<&'a Path>,
     /// `--fdd-model`: FDD-Net correcting the demodulated phases.
     pub fdd_model: Option<&'a Path>,
+    /// `--demod-refinements`: demodulations after the first.
+    pub demod_refinements: u32,
 }
 
 /// `--zocr-model`, loaded and checked against seed 001's set on a DMD of
@@ -82,6 +84,7 @@ fn scan_sim(options: &Options) -> anyhow::Result<HighSpeedReport> {
     config.scan.frames = options.frames;
     config.projector_driver = options.projector_driver;
     config.conventional = options.conventional;
+    config.scan.decoder.demux.refinements = options.demod_refinements;
     let failed = || {
         format!(
             "high-speed scan into {} failed; nothing written",
@@ -104,13 +107,17 @@ fn scan_sim(_: &Options) -> anyhow::Result<HighSpeedReport> {
 /// The scan's figures on the console.
 pub fn print_summary(report: &HighSpeedReport, out: &Path) {
     println!(
-        "high-speed scan of {}: {} camera frames at {:.0} Hz -> {} instants at {:.0} Hz ({} decoder)",
+        "high-speed scan of {}: {} camera frames at {:.0} Hz -> {} instants at {:.0} Hz ({} decoder{})",
         report.scene,
         report.frames,
         report.camera_rate_hz,
         report.instants.len(),
         report.pattern_rate_hz,
-        report.decoder
+        report.decoder,
+        match report.demodulation_refinements {
+            0 => String::new(),
+            n => format!(", {n} demodulation refinement(s)"),
+        }
     );
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     println!(
