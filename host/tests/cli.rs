@@ -50,6 +50,18 @@ fn fails_with(out: &std::process::Output, needle: &str) {
     assert!(stderr.contains(needle), "stderr lacks {needle:?}: {stderr}");
 }
 
+/// `slscan scan --sim --scene spheres <args> --out <out>`.
+#[cfg(feature = "sim")]
+fn sim_scan(args: &[&str], out: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_slscan"))
+        .args(["scan", "--sim", "--scene", "spheres"])
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn reconstruct_writes_a_cloud_and_pictures() {
     let dir = tmp("ok");
@@ -412,15 +424,7 @@ fn high_speed_on_hardware_refuses_what_cannot_work_before_any_device() {
 fn physics_correction_without_a_diffusion_restorer_is_refused_before_capture() {
     let dir = tmp("physics-correction");
     let out = dir.join("out");
-    let run = |extra: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_slscan"))
-            .args(["scan", "--sim", "--scene", "spheres"])
-            .args(extra)
-            .args(["--physics-correction", "0.01", "--out"])
-            .arg(&out)
-            .output()
-            .unwrap()
-    };
+    let run = |extra: &[&str]| sim_scan(&[extra, &["--physics-correction", "0.01"]].concat(), &out);
     let water = ["--medium", "water", "--turbidity", "T3"];
     fails_with(
         &run(&[&water[..], &["--restorer", "learned"]].concat()),
@@ -442,15 +446,7 @@ fn physics_correction_without_a_diffusion_restorer_is_refused_before_capture() {
 fn a_water_edge_margin_in_air_or_negative_is_refused_before_capture() {
     let dir = tmp("water-edge-margin");
     let out = dir.join("out");
-    let run = |extra: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_slscan"))
-            .args(["scan", "--sim", "--scene", "spheres"])
-            .args(extra)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap()
-    };
+    let run = |extra: &[&str]| sim_scan(extra, &out);
     fails_with(
         &run(&["--water-edge-margin", "2"]),
         "describe water: add --medium water",
@@ -477,22 +473,7 @@ fn a_water_edge_margin_in_air_or_negative_is_refused_before_capture() {
 fn demodulation_refinements_outside_high_speed_or_with_fdd_net_are_refused() {
     let dir = tmp("refinements");
     let out = dir.join("out");
-    let scan = |extra: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_slscan"))
-            .args([
-                "scan",
-                "--sim",
-                "--scene",
-                "spheres",
-                "--demod-refinements",
-                "1",
-            ])
-            .args(extra)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap()
-    };
+    let scan = |extra: &[&str]| sim_scan(&[&["--demod-refinements", "1"], extra].concat(), &out);
     fails_with(
         &scan(&["--mode", "sequential"]),
         "--demod-refinements is for --mode high-speed only",
