@@ -412,7 +412,7 @@ fn phase_and_modulation(
     modulation: &mut [f32],
 ) {
     for (((z, &c), p), b) in image.iter().zip(carrier).zip(phase).zip(modulation) {
-        *p = wrap_pi(c + fast_atan2(z.im, z.re));
+        *p = phase_on(z, c);
         *b = 2.0 * (z.re * z.re + z.im * z.im).sqrt();
     }
 }
@@ -421,8 +421,14 @@ fn phase_and_modulation(
 #[inline(always)]
 fn phase_on_carrier(image: &[Complex32], carrier: &[f32], phase: &mut [f32]) {
     for ((z, &c), p) in image.iter().zip(carrier).zip(phase) {
-        *p = wrap_pi(c + fast_atan2(z.im, z.re));
+        *p = phase_on(z, c);
     }
+}
+
+/// One pixel's filtered baseband `z` back on its carrier phase `c`, wrapped.
+#[inline(always)]
+fn phase_on(z: &Complex32, c: f32) -> f32 {
+    wrap_pi(c + fast_atan2(z.im, z.re))
 }
 
 /// A crosstalk matrix must be finite and invertible: its inverse unmixes.
