@@ -14,8 +14,11 @@
 //! The analytic decoder is also run with its demodulation refined once and
 //! twice (`DemuxOptions::refinements`, the scan's `--demod-refinements`).
 //!
-//! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--samples N] [--zocr PATH] [--fdd PATH]`
-//! (`--samples`: points on each pixel's epipolar segment, the decoder's default unless given)
+//! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--samples N] [--moving] [--zocr PATH] [--fdd PATH]`
+//! (`--samples`: points on each pixel's epipolar segment, the decoder's default unless given;
+//! `--moving`: the same scenes with their objects spinning or flying through the
+//! exposure, each pattern measured against the scene at its own instant; the
+//! first stage's AC and zero-order truths are then mid-exposure's, an approximation)
 
 use std::path::PathBuf;
 
@@ -26,7 +29,9 @@ use slscan::highspeed::{
     ZeroOrderRemoved, ZocrNet,
 };
 use slscan::phase::ftp::{ftp_phase, FringeAxis};
-use slscan::sim::high_speed_samples::{random_high_speed_sample, HighSpeedSample};
+use slscan::sim::high_speed_samples::{
+    random_high_speed_sample, random_moving_high_speed_sample, HighSpeedSample,
+};
 
 /// Which learned stage a variant adds to the analytic decoder.
 #[derive(Clone, Copy)]
@@ -74,6 +79,17 @@ impl Stage1 {
     }
 }
 
+/// Pixels whose surface moved more than 1 mm in depth between the first
+/// and the last pattern's instants (or came into or out of view).
+fn moved_pixels(s: &HighSpeedSample) -> Vec<bool> {
+    let (first, last) = (&s.depth_m[0], &s.depth_m[s.depth_m.len() - 1]);
+    first
+        .iter()
+        .zip(last)
+        .map(|(a, b)| a.is_finite() != b.is_finite() || (a - b).abs() > 1e-3)
+        .collect()
+}
+
 fn wrap(a: f32) -> f32 {
     let t = std::f32::consts::TAU;
     a - t * (a / t).round()
@@ -87,8 +103,11 @@ struct Tally {
 
 impl Tally {
     fn add(&mut self, wrapped: &[f32], truth: &[f32]) {
-        for (w, t) in wrapped.iter().zip(truth) {
-            if t.is_finite() && w.is_finite() {
+        self.add_where(wrapped, truth, |_| true);
+    }
+    fn add_where(&mut self, wrapped: &[f32], truth: &[f32], keep: impl Fn(usize) -> bool) {
+        for (i, (w, t)) in wrapped.iter().zip(truth).enumerate() {
+            if keep(i) && t.is_finite() && w.is_finite() {
                 self.abs_err += f64::from(wrap(w - t).abs());
                 self.n += 1;
             }
@@ -126,17 +145,31 @@ fn main() -> anyhow::Result<()> {
         )),
         None => None,
     };
+    let moving = args.iter().any(|a| a == "--moving");
     let detail = Detail::default();
     let set = PatternSet::seed001(detail.projector)?;
     let calibration = slscan::sim::truth::twin_calibration(&single_head(&detail), 1);
     let head = &calibration.heads[0];
     println!(
-        "{count} random twin scenes (seed {seed}), {}x{} colour camera (8-bit), {}x{} DMD, 24 x 200 us in one 4.8 ms exposure",
+        "{count} random {} twin scenes (seed {seed}), {}x{} colour camera (8-bit), {}x{} DMD, 24 x 200 us in one 4.8 ms exposure",
+        if moving { "moving" } else { "static" },
         detail.camera.0, detail.camera.1, detail.projector.0, detail.projector.1
     );
+    let render = if moving {
+        random_moving_high_speed_sample
+    } else {
+        random_high_speed_sample
+    };
     let samples: Vec<HighSpeedSample> = (0..count)
-        .map(|i| random_high_speed_sample(&set, &detail, seed, i))
+        .map(|i| render(&set, &detail, seed, i))
         .collect::<Result<_, _>>()?;
+    let moved: Vec<Vec<bool>> = samples.iter().map(moved_pixels).collect();
+    let share = moved.iter().flatten().filter(|&&m| m).count() as f64
+        / moved.iter().map(Vec::len).sum::<usize>().max(1) as f64;
+    println!(
+        "{:.1} % of the pixels' surfaces moved > 1 mm in depth over the exposure",
+        100.0 * share
+    );
     let zocr = zocr_path.map(|p| ZocrNet::load(&p, &set)).transpose()?;
     let fdd = fdd_path.map(|p| FddNet::load(&p, &set)).transpose()?;
     let flats0 = &samples[0].flats;
@@ -272,10 +305,10 @@ fn main() -> anyhow::Result<()> {
             }
         }
     }
-    println!("\n| decoder | wrapped-phase MAE, rad | decoded, of lit | unwrapped right, of decoded | depth RMSE of those, um |");
-    println!("|---|---|---|---|---|");
+    println!("\n| decoder | wrapped-phase MAE, rad | MAE where the surface moved | decoded, of lit | unwrapped right, of decoded | depth RMSE of those, um |");
+    println!("|---|---|---|---|---|---|");
     println!(
-        "| row FTP per pattern (slscan::phase::ftp) | {:.4} | | | |",
+        "| row FTP per pattern (slscan::phase::ftp) | {:.4} | | | | |",
         ftp.mae()
     );
     for (name, reference, xtalk, zero, refinements, learned) in variants {
@@ -296,14 +329,15 @@ fn main() -> anyhow::Result<()> {
             Learned::Zocr => decoder = decoder.with_zocr(zocr.clone().context("no --zocr")?),
             Learned::Fdd => decoder = decoder.with_fdd(fdd.clone().context("no --fdd")?)?,
         }
-        let mut tally = Tally::default();
+        let (mut tally, mut tally_moved) = (Tally::default(), Tally::default());
         let (mut decoded, mut right, mut lit) = (0usize, 0usize, 0usize);
         let mut depth_sq = 0.0f64;
-        for s in &samples {
+        for (s, moved) in samples.iter().zip(&moved) {
             let out = decoder.decode([&s.channels[0], &s.channels[1], &s.channels[2]])?;
             for (m, instant) in out.instants.iter().enumerate() {
                 tally.add(&out.fringes.wrapped[m], &s.phase[m]);
-                for i in 0..s.depth_m.len() {
+                tally_moved.add_where(&out.fringes.wrapped[m], &s.phase[m], |i| moved[i]);
+                for i in 0..s.depth_m[m].len() {
                     let t = s.phase[m][i];
                     if !t.is_finite() {
                         continue;
@@ -314,14 +348,19 @@ fn main() -> anyhow::Result<()> {
                         decoded += 1;
                         if (a - t).abs() < std::f32::consts::PI {
                             right += 1;
-                            depth_sq += f64::from(instant.depth_m[i] - s.depth_m[i]).powi(2);
+                            depth_sq += f64::from(instant.depth_m[i] - s.depth_m[m][i]).powi(2);
                         }
                     }
                 }
             }
         }
+        let moved_mae = if tally_moved.n > 0 {
+            format!("{:.4}", tally_moved.mae())
+        } else {
+            "-".into()
+        };
         println!(
-            "| {name} | {:.4} | {:.3} | {:.4} | {:.1} |",
+            "| {name} | {:.4} | {moved_mae} | {:.3} | {:.4} | {:.1} |",
             tally.mae(),
             decoded as f64 / lit.max(1) as f64,
             right as f64 / decoded.max(1) as f64,
