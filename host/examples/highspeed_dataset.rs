@@ -1,7 +1,7 @@
 //! Training data for the high-speed decoder's learned stages (issue 17,
 //! seed 001), in the scan's own geometry: `spheres`' single head (640x480
-//! colour camera, 1280x800 DMD), random static scenes of `hil-sim
-//! dataset`'s placement, seed 001's 24 binary patterns at 5 kHz in one
+//! colour camera, 1280x800 DMD), random scenes of `hil-sim dataset`'s
+//! placement, seed 001's 24 binary patterns at 5 kHz in one
 //! 4.8 ms exposure ([`slscan::sim::high_speed_samples`]).
 //!
 //! ```text
@@ -9,8 +9,8 @@
 //! ```
 //!
 //! `moving`: the same scenes with their objects spinning or flying through
-//! the exposure ([`slscan::sim::high_speed_samples::random_moving_high_speed_sample`]),
-//! each pattern's truth taken at its own instant.
+//! the exposure (`SceneMotion::Moving`), each pattern's truth taken at its
+//! own instant; without it they are static.
 //!
 //! `zocr` (the default; ZOCR-Net's data) writes `OUT/sample_NNNN.npy`
 //! (float32, 2-D `[9 H, W]`: the exposure's R, G, B planes as the camera
@@ -38,9 +38,7 @@ use slscan::highspeed::{
 };
 use slscan::io::npy::encode_npy_f32_rows;
 use slscan::phase::wrap_pi;
-use slscan::sim::high_speed_samples::{
-    random_high_speed_sample, random_moving_high_speed_sample, HighSpeedSample,
-};
+use slscan::sim::high_speed_samples::{random_high_speed_sample, HighSpeedSample, SceneMotion};
 use slscan::sim::twin::Detail;
 
 const CAMERA: (u32, u32) = (640, 480);
@@ -51,10 +49,10 @@ const CROPS: usize = 4;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let (out, count, seed, kind, moving) = match args.as_slice() {
-        [o, c, s] => (o, c, s, "zocr", false),
-        [o, c, s, k] => (o, c, s, k.as_str(), false),
-        [o, c, s, k, m] if m == "moving" => (o, c, s, k.as_str(), true),
+    let (out, count, seed, kind, motion) = match args.as_slice() {
+        [o, c, s] => (o, c, s, "zocr", SceneMotion::Static),
+        [o, c, s, k] => (o, c, s, k.as_str(), SceneMotion::Static),
+        [o, c, s, k, m] if m == "moving" => (o, c, s, k.as_str(), SceneMotion::Moving),
         _ => return Err("usage: highspeed_dataset OUT COUNT SEED [zocr|fdd] [moving]".into()),
     };
     let out = PathBuf::from(out);
@@ -77,14 +75,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "zocr" => (
             (0..count)
                 .into_par_iter()
-                .map(|i| write_zocr_sample(&out, &set, &detail, seed, moving, i))
+                .map(|i| write_zocr_sample(&out, &set, &detail, seed, motion, i))
                 .collect::<Result<_, String>>()?,
             "float32 [9 H, W]: camera R, G, B (noisy, crosstalk, 8-bit); per LED band the noise-free AC (sum of its 8 patterns' B cos phi, no crosstalk); per band the zero order (patterns' mean + ambient); camera full scale",
         ),
         "fdd" => (
             (0..count)
                 .into_par_iter()
-                .map(|i| write_fdd_crops(&out, &set, head, &detail, seed, moving, i))
+                .map(|i| write_fdd_crops(&out, &set, head, &detail, seed, motion, i))
                 .collect::<Result<Vec<Vec<String>>, String>>()?
                 .into_iter()
                 .flatten()
@@ -96,7 +94,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let manifest = serde_json::json!({
         "kind": format!("highspeed-{kind}"),
         "seed": seed,
-        "moving": moving,
+        "moving": motion == SceneMotion::Moving,
         "count": count,
         "width": CAMERA.0,
         "height": CAMERA.1,
@@ -122,15 +120,10 @@ fn sample(
     set: &PatternSet,
     detail: &Detail,
     seed: u64,
-    moving: bool,
+    motion: SceneMotion,
     i: usize,
 ) -> Result<HighSpeedSample, String> {
-    let render = if moving {
-        random_moving_high_speed_sample
-    } else {
-        random_high_speed_sample
-    };
-    render(set, detail, seed, i as u64).map_err(|e| e.to_string())
+    random_high_speed_sample(set, detail, seed, i as u64, motion).map_err(|e| e.to_string())
 }
 
 /// ZOCR-Net's sample: the whole exposure with its stage-1 targets.
@@ -139,10 +132,10 @@ fn write_zocr_sample(
     set: &PatternSet,
     detail: &Detail,
     seed: u64,
-    moving: bool,
+    motion: SceneMotion,
     i: usize,
 ) -> Result<String, String> {
-    let s = sample(set, detail, seed, moving, i)?;
+    let s = sample(set, detail, seed, motion, i)?;
     let data: Vec<f32> = s
         .channels
         .iter()
@@ -166,10 +159,10 @@ fn write_fdd_crops(
     head: &Head,
     detail: &Detail,
     seed: u64,
-    moving: bool,
+    motion: SceneMotion,
     i: usize,
 ) -> Result<Vec<String>, String> {
-    let s = sample(set, detail, seed, moving, i)?;
+    let s = sample(set, detail, seed, motion, i)?;
     let view = |l: usize| [&s.flats[l][0][..], &s.flats[l][1][..], &s.flats[l][2][..]];
     let config = DecoderConfig::default();
     let crosstalk = crosstalk_from_flats([view(0), view(1), view(2)], config.saturation_level)

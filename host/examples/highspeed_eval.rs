@@ -29,9 +29,7 @@ use slscan::highspeed::{
     ZeroOrderRemoved, ZocrNet,
 };
 use slscan::phase::ftp::{ftp_phase, FringeAxis};
-use slscan::sim::high_speed_samples::{
-    random_high_speed_sample, random_moving_high_speed_sample, HighSpeedSample,
-};
+use slscan::sim::high_speed_samples::{random_high_speed_sample, HighSpeedSample, SceneMotion};
 
 /// Which learned stage a variant adds to the analytic decoder.
 #[derive(Clone, Copy)]
@@ -145,23 +143,26 @@ fn main() -> anyhow::Result<()> {
         )),
         None => None,
     };
-    let moving = args.iter().any(|a| a == "--moving");
+    let motion = if args.iter().any(|a| a == "--moving") {
+        SceneMotion::Moving
+    } else {
+        SceneMotion::Static
+    };
     let detail = Detail::default();
     let set = PatternSet::seed001(detail.projector)?;
     let calibration = slscan::sim::truth::twin_calibration(&single_head(&detail), 1);
     let head = &calibration.heads[0];
     println!(
         "{count} random {} twin scenes (seed {seed}), {}x{} colour camera (8-bit), {}x{} DMD, 24 x 200 us in one 4.8 ms exposure",
-        if moving { "moving" } else { "static" },
+        if motion == SceneMotion::Moving {
+            "moving"
+        } else {
+            "static"
+        },
         detail.camera.0, detail.camera.1, detail.projector.0, detail.projector.1
     );
-    let render = if moving {
-        random_moving_high_speed_sample
-    } else {
-        random_high_speed_sample
-    };
     let samples: Vec<HighSpeedSample> = (0..count)
-        .map(|i| render(&set, &detail, seed, i))
+        .map(|i| random_high_speed_sample(&set, &detail, seed, i, motion))
         .collect::<Result<_, _>>()?;
     let moved: Vec<Vec<bool>> = samples.iter().map(moved_pixels).collect();
     let share = moved.iter().flatten().filter(|&&m| m).count() as f64

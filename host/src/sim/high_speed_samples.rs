@@ -59,6 +59,18 @@ fn planes(image: &Image) -> [Raster<f32>; 3] {
     })
 }
 
+/// Whether a sample's objects stay put or move during the exposure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneMotion {
+    /// Static scenes: every pattern's truth is the one pose.
+    Static,
+    /// Every object but the wall spins or flies through the exposure (see
+    /// [`set_random_motions`]): the exposure sums the poses the 24 patterns
+    /// light, and each pattern's truth is the scene where it was at that
+    /// pattern's instant. The same layout as the static sample.
+    Moving,
+}
+
 /// Scene `index` of the stream `seed` (the dataset exporter's placement:
 /// objects 0.44-0.54 m away, a wall at 0.6 m), rendered through head A of
 /// [`single_head`] with `set` at 5 kHz in one 4.8 ms exposure.
@@ -67,30 +79,9 @@ pub fn random_high_speed_sample(
     detail: &Detail,
     seed: u64,
     index: u64,
+    motion: SceneMotion,
 ) -> Result<HighSpeedSample, TwinError> {
-    sample(set, detail, seed, index, false)
-}
-
-/// [`random_high_speed_sample`]'s scene `index` of stream `seed` with every
-/// object but the wall moving during the exposure (see [`set_random_motions`]):
-/// the exposure sums the poses the 24 patterns light, and each pattern's
-/// truth is the scene where it was at that pattern's instant.
-pub fn random_moving_high_speed_sample(
-    set: &PatternSet,
-    detail: &Detail,
-    seed: u64,
-    index: u64,
-) -> Result<HighSpeedSample, TwinError> {
-    sample(set, detail, seed, index, true)
-}
-
-fn sample(
-    set: &PatternSet,
-    detail: &Detail,
-    seed: u64,
-    index: u64,
-    moving: bool,
-) -> Result<HighSpeedSample, TwinError> {
+    let moving = motion == SceneMotion::Moving;
     let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(1_000_003).wrapping_add(index));
     let mut scene = random_scene(&mut rng, &PLACE, true)?;
     if moving {
@@ -295,8 +286,8 @@ mod tests {
             projector: (1280, 800),
         };
         let set = PatternSet::seed001(detail.projector).unwrap();
-        let still = random_high_speed_sample(&set, &detail, 5, 0).unwrap();
-        let moving = random_moving_high_speed_sample(&set, &detail, 5, 0).unwrap();
+        let still = random_high_speed_sample(&set, &detail, 5, 0, SceneMotion::Static).unwrap();
+        let moving = random_high_speed_sample(&set, &detail, 5, 0, SceneMotion::Moving).unwrap();
         let n = still.depth_m[0].len();
         let last = set.patterns().len() - 1;
         // A static scene's 24 instants are one truth.
