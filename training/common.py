@@ -67,12 +67,13 @@ def add_args(ap, data_help):
     ap.add_argument("--steps", type=int, help="override the profile's step count")
     ap.add_argument("--minutes", type=float, help="override the profile's time limit")
     ap.add_argument("--threads", type=int, help="override the profile's CPU threads")
+    ap.add_argument("--lr", type=float, help="override the profile's peak learning rate")
 
 
 def profile_config(configs, args):
     """The profile's configuration with the command line's overrides."""
     cfg = dict(configs[args.profile])
-    for k in ("steps", "minutes", "threads"):
+    for k in ("steps", "minutes", "threads", "lr"):
         if getattr(args, k):
             cfg[k] = getattr(args, k)
     return cfg

@@ -54,8 +54,6 @@ def train(args):
     if args.kind != "onestep":
         raise SystemExit("FDD-Net is a one-step network (--kind onestep)")
     cfg = common.profile_config(CONFIGS, args)
-    if args.lr:
-        cfg["lr"] = args.lr
     torch.manual_seed(args.seed)
     torch.set_num_threads(cfg["threads"])
     device = "cuda" if args.profile == "gpu" and torch.cuda.is_available() else "cpu"
@@ -128,9 +126,7 @@ def main():
     ap.add_argument("--profile", choices=list(CONFIGS), default="cpu")
     ap.add_argument("--extra-data", action="append", default=[], help="another highspeed_dataset folder (fdd), e.g. moving scenes")
     ap.add_argument("--init", help="start from this exported FDD-Net's weights")
-    ap.add_argument("--lr", type=float, help="override the profile's peak learning rate")
-    args = ap.parse_args()
-    train(args)
+    train(ap.parse_args())
 
 
 if __name__ == "__main__":

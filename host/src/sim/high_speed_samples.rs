@@ -104,6 +104,7 @@ pub fn random_high_speed_sample(
         .zip(set.leds())
         .collect();
     let timeline = ProjectorTimeline::sequence(items, 0.0, SLOT_S);
+    let timelines = std::slice::from_ref(&timeline);
     let slots = |n: usize| Exposure {
         start_s: 0.0,
         end_s: n as f64 * SLOT_S,
@@ -115,16 +116,10 @@ pub fn random_high_speed_sample(
     let renderer = Renderer::new(&scene, &rig, 0, pose_s)?;
     let image = if moving {
         let mut noise = ChaCha8Rng::seed_from_u64(index + 17);
-        let timelines = std::slice::from_ref(&timeline);
         render_exposure(&scene, &rig, 0, timelines, exposure, &sensor, &mut noise)?.image
     } else {
         renderer
-            .frame(
-                std::slice::from_ref(&timeline),
-                exposure,
-                &sensor,
-                index + 17,
-            )?
+            .frame(timelines, exposure, &sensor, index + 17)?
             .image
     };
     let white = to_twin(&Raster::filled(dw as usize, dh as usize, 1.0));
