@@ -312,14 +312,8 @@ impl Decoder {
         let simd = self.config.simd;
         bands.into_par_iter().enumerate().for_each(|(b, mut out)| {
             simd_run!(simd, {
-                // One scratch per band, written where read: it was a fresh
-                // NaN-filled 1.5 KB per direction, eight times a pixel.
-                let mut scratch = ChunkScratch {
-                    dmd: vec![[f64::NAN; 2]; CHUNK * self.samples],
-                    along: [Vector3::zeros(); CHUNK],
-                    phases: [[f64::NAN; MAX_SAMPLES]; 3],
-                    newton: [[NewtonStep::NONE; CHUNK]; 3],
-                };
+                // One scratch per band, written where read.
+                let mut scratch = ChunkScratch::new(self.samples);
                 let first = b * BAND_ROWS * w;
                 let len = out[0].len();
                 for start in (0..len).step_by(CHUNK) {
@@ -361,7 +355,10 @@ impl Decoder {
     /// `out[m][at]` and its depth into `out[p + m][at]` (p patterns, `at` in
     /// `chunk`); untouched where not decoded. Direction by direction over the
     /// chunk, not pixel by pixel: a pixel's directions read 51 maps and write
-    /// 48, more streams than the caches follow, a direction's only 15.
+    /// 48, more streams than the caches follow, a direction's only 15. Every
+    /// step is a loop without branches over all [`CHUNK`] lanes (a short
+    /// chunk's last lanes are NaN and decode nothing): PDM's per-pixel
+    /// searches branched on data the CPU could not predict.
     #[inline(always)]
     fn decode_chunk(
         &self,
@@ -373,83 +370,81 @@ impl Decoder {
         scratch: &mut ChunkScratch,
     ) {
         let (s0, ds) = self.segment_steps();
-        let j_count = self.samples;
+        let lanes = chunk.len();
+        let pixels = first + chunk.start..first + chunk.end;
         let ChunkScratch {
-            dmd,
             along,
-            phases: buffers,
-            newton,
+            dmd,
+            phases,
+            ordered,
         } = scratch;
-        // Each pixel's samples on the DMD; a NaN ray marks a pixel that is
-        // not decoded (saturated, or no ray).
-        for (k, at) in chunk.clone().enumerate() {
-            let i = first + at;
+        // Each pixel's ray; a NaN ray marks a pixel that is not decoded
+        // (saturated, no ray, or past the chunk's end), and gives NaN samples.
+        along.fill(Vector3::from_element(f64::NAN));
+        for (a, i) in along.iter_mut().zip(pixels.clone()) {
             let ray = self.rays[i];
-            if saturated[i] || !ray[0].is_finite() {
-                along[k] = Vector3::from_element(f64::NAN);
-                continue;
+            if !saturated[i] && ray[0].is_finite() {
+                *a = ray_in_projector(&self.camera_to_projector, &ray);
             }
-            let samples = &mut dmd[k * j_count..(k + 1) * j_count];
-            along[k] = ray_in_projector(&self.camera_to_projector, &ray);
-            for (j, d) in samples.iter_mut().enumerate() {
-                let s = s0 + j as f64 * ds;
-                *d = dmd_on_ray_or_nan(&self.camera_to_projector, &self.projector, &along[k], s);
+        }
+        // Each pixel's samples on the DMD.
+        let [dmd_u, dmd_v] = dmd;
+        for (j, (u, v)) in dmd_u.iter_mut().zip(dmd_v.iter_mut()).enumerate() {
+            let s = s0 + j as f64 * ds;
+            for k in 0..CHUNK {
+                [u[k], v[k]] =
+                    dmd_on_ray_or_nan(&self.camera_to_projector, &self.projector, &along[k], s);
             }
         }
         let directions = self.set.directions();
         let p = self.set.patterns().len();
         for n in 1..=directions as u32 {
             let pats = [0, 1, 2].map(|c| self.set.pattern(n, c));
-            for steps in newton.iter_mut() {
-                steps.fill(NewtonStep::NONE);
+            // The measured wrapped phases (cycles), NaN where the pixel is
+            // not decoded or a pattern's modulation is too weak. (`&`, not
+            // `&&`, in the lane loops: a short circuit is a branch, and kept
+            // them scalar.)
+            let mut good = [false; CHUNK];
+            for (k, g) in good[..lanes].iter_mut().enumerate() {
+                *g = along[k].x.is_finite();
             }
-            for (k, at) in chunk.clone().enumerate() {
-                if !along[k].x.is_finite() {
-                    continue;
+            for (c, pat) in pats.iter().enumerate() {
+                let zero = &fringes.zero_order[c][pixels.clone()];
+                let modulation = &fringes.modulation[pat.index][pixels.clone()];
+                for (g, (&zero, &modulation)) in good.iter_mut().zip(zero.iter().zip(modulation)) {
+                    let zero = zero / directions as f32;
+                    *g &= (zero > 0.0) & (modulation >= self.config.min_modulation_ratio * zero);
                 }
-                let i = first + at;
-                let dmd = &dmd[k * j_count..(k + 1) * j_count];
-                let mut wrapped = [0.0f64; 3];
-                let mut good = true;
-                for (c, pat) in pats.iter().enumerate() {
-                    let m = pat.index;
-                    let zero = fringes.zero_order[c][i] / directions as f32;
-                    let modulation = fringes.modulation[m][i];
-                    good &= zero > 0.0 && modulation >= self.config.min_modulation_ratio * zero;
-                    wrapped[c] = f64::from(fringes.wrapped[m][i]) / std::f64::consts::TAU;
+            }
+            let mut wrapped = [[f64::NAN; CHUNK]; 3];
+            for (w, pat) in wrapped.iter_mut().zip(&pats) {
+                let measured = &fringes.wrapped[pat.index][pixels.clone()];
+                for (k, &measured) in measured.iter().enumerate() {
+                    let phase = f64::from(measured) / std::f64::consts::TAU;
+                    w[k] = if good[k] { phase } else { f64::NAN };
                 }
-                if !good {
-                    continue;
-                }
-                for (buffer, pat) in buffers.iter_mut().zip(&pats) {
-                    for (b, p) in buffer[..j_count].iter_mut().zip(dmd) {
-                        *b = pat.frequency[0] * p[0] + pat.frequency[1] * p[1];
-                    }
-                }
-                let phases = [
-                    &buffers[0][..j_count],
-                    &buffers[1][..j_count],
-                    &buffers[2][..j_count],
-                ];
-                let Some((j, tau, rms)) = pdm_along(&phases, &wrapped) else {
-                    continue;
-                };
-                if rms > self.config.max_rms_cycles {
-                    continue;
-                }
-                for (c, ph) in phases.iter().enumerate() {
-                    let predicted = ph[j] + tau * (ph[j + 1] - ph[j]);
-                    let absolute = wrapped[c] + (predicted - wrapped[c]).round();
-                    if let Some(step) = self.depth_step(ph, dmd, absolute, j, s0, ds) {
-                        newton[c][k] = step;
+            }
+            // Each colour's phase at the samples.
+            for (phase, pat) in phases.iter_mut().zip(&pats) {
+                let [fu, fv] = pat.frequency;
+                for (ph, (u, v)) in phase.iter_mut().zip(dmd_u.iter().zip(dmd_v.iter())) {
+                    for k in 0..CHUNK {
+                        ph[k] = fu * u[k] + fv * v[k];
                     }
                 }
             }
-            // The Newton steps of the chunk's pixels, colour by colour: one
-            // projection each, in a loop without branches over the pixels
-            // (vector lanes); a pixel without a step gets NaN, which its maps
-            // already hold.
-            for (steps, pat) in newton.iter().zip(&pats) {
+            let wrapped_ordered = reference_first(phases, &wrapped, ordered);
+            let pdm = pdm_lanes(ordered, &wrapped_ordered);
+            // PDM's position, kept where the three colours agree well enough
+            // (no position has an infinite score).
+            let kept = pdm.score.map(|score| {
+                score.is_finite() & ((score / 2.0).sqrt() <= self.config.max_rms_cycles)
+            });
+            for ((ph, w), pat) in phases.iter().zip(&wrapped).zip(&pats) {
+                let absolute = absolute_orders(ph, w, &pdm, &kept);
+                let steps = self.depth_steps(ph, [dmd_u, dmd_v], &absolute, &pdm.segment);
+                // The Newton step of each pixel: one projection; a pixel
+                // without a step gets NaN, which its maps already hold.
                 let f = pat.frequency;
                 let (phase_out, depth_out) = out_pair(out, pat.index, p + pat.index);
                 let lanes = phase_out[chunk.clone()]
@@ -477,43 +472,59 @@ impl Decoder {
         segment_steps(self.config.depth_range_m, self.samples)
     }
 
-    /// Where the Newton step toward the inverse depth at which a pattern's phase
-    /// along the ray is `absolute` cycles starts: the samples' segment that
-    /// brackets it, searched outward from segment `near` (where PDM put the
-    /// pixel: the bracket is there or next to it), and the point on its chord.
-    /// `None` off the segment or the DMD (judged on the segment's DMD points, a
-    /// fraction of a pixel from exact).
+    /// Per pixel of a chunk, where the Newton step toward the inverse depth
+    /// at which a pattern's phase along the ray is `absolute[k]` cycles
+    /// starts: the samples' segment that brackets it nearest to segment
+    /// `near[k]` (where PDM put the pixel: the bracket is there or next to it;
+    /// the lower one of two as near), and the point on its chord. No step
+    /// (NaN) without an absolute phase, off the segment or off the DMD
+    /// (judged on the segment's DMD points, a fraction of a pixel from exact).
+    /// `ph` and `dmd` per sample, as in [`ChunkScratch`].
     #[inline(always)]
-    fn depth_step(
+    fn depth_steps(
         &self,
-        ph: &[f64],
-        dmd: &[[f64; 2]],
-        absolute: f64,
-        near: usize,
-        s0: f64,
-        ds: f64,
-    ) -> Option<NewtonStep> {
-        let brackets = |j: usize| {
-            let (a, b) = (ph[j], ph[j + 1]);
-            a.is_finite() && b.is_finite() && (a - absolute) * (b - absolute) <= 0.0 && a != b
-        };
-        let segments = ph.len() - 1;
-        let j = (0..segments).find_map(|d| {
-            if d <= near && brackets(near - d) {
-                Some(near - d)
-            } else {
-                (near + d < segments && brackets(near + d)).then_some(near + d)
-            }
-        })?;
-        let slope = (ph[j + 1] - ph[j]) / ds;
-        let tau = (absolute - ph[j]) / (ph[j + 1] - ph[j]);
-        let s = s0 + j as f64 * ds + tau * ds;
+        ph: &[[f64; CHUNK]],
+        dmd: [&[[f64; CHUNK]]; 2],
+        absolute: &[f64; CHUNK],
+        near: &[f64; CHUNK],
+    ) -> [NewtonStep; CHUNK] {
+        let (s0, ds) = self.segment_steps();
+        // The bracket's rank (0 at `near`, then one below, one above, two
+        // below...) and its segment; then its ends' phases and DMD points.
+        let mut chosen = PingPong::new([f64::INFINITY, NO_SEGMENT]);
+        for pair in ph.windows(2).enumerate() {
+            let (was, now) = chosen.step();
+            nearer_brackets(pair, absolute, near, was, now);
+        }
+        let [rank, segment] = chosen.current();
+        let index = segment_indices(&segment, ph.len());
+        let [pa, pb] = at_segments(ph, &index);
+        let [ua, ub] = at_segments(dmd[0], &index);
+        let [va, vb] = at_segments(dmd[1], &index);
         let (w, h) = self.set.dmd_px();
-        let (a, b) = (dmd[j], dmd[j + 1]);
-        let u = a[0] + tau * (b[0] - a[0]);
-        let v = a[1] + tau * (b[1] - a[1]);
-        let inside = u >= -0.5 && v >= -0.5 && u < w as f64 - 0.5 && v < h as f64 - 0.5;
-        inside.then_some(NewtonStep { s, slope, absolute })
+        let mut steps = [NewtonStep::NONE; CHUNK];
+        for k in 0..CHUNK {
+            let slope = (pb[k] - pa[k]) / ds;
+            let tau = (absolute[k] - pa[k]) / (pb[k] - pa[k]);
+            let s = s0 + segment[k] * ds + tau * ds;
+            let u = ua[k] + tau * (ub[k] - ua[k]);
+            let v = va[k] + tau * (vb[k] - va[k]);
+            let inside = (rank[k] < f64::INFINITY)
+                & (u >= -0.5)
+                & (v >= -0.5)
+                & (u < w as f64 - 0.5)
+                & (v < h as f64 - 0.5);
+            steps[k] = if inside {
+                NewtonStep {
+                    s,
+                    slope,
+                    absolute: absolute[k],
+                }
+            } else {
+                NewtonStep::NONE
+            };
+        }
+        steps
     }
 }
 
@@ -558,17 +569,315 @@ fn out_pair<'a>(out: &'a mut [&mut [f32]], a: usize, b: usize) -> (&'a mut [f32]
     (&mut *low[a], &mut *high[0])
 }
 
-/// Pixels decoded together by [`Decoder::decode_chunk`].
+/// Pixels decoded together by [`Decoder::decode_chunk`]: the lanes of its loops.
 const CHUNK: usize = 64;
 
-/// One band's scratch for [`Decoder::decode_chunk`]: a chunk's pixels' rays in
-/// the projector frame and their samples' DMD points (pixel-major), and one
-/// direction's three phases at one pixel's samples.
+/// The segment of a pixel without a PDM position (segments are numbered
+/// from 0, as floats like the other running values: one width of lane).
+const NO_SEGMENT: f64 = -1.0;
+
+/// One band's scratch for [`Decoder::decode_chunk`]; per-sample values are
+/// one array of the chunk's pixels per sample.
 struct ChunkScratch {
-    dmd: Vec<[f64; 2]>,
+    /// The chunk's rays in the projector frame; NaN for a pixel not decoded.
     along: [Vector3<f64>; CHUNK],
-    phases: [[f64; MAX_SAMPLES]; 3],
-    newton: [[NewtonStep; CHUNK]; 3],
+    /// The samples' DMD columns and rows.
+    dmd: [Vec<[f64; CHUNK]>; 2],
+    /// One direction's phases (cycles) at the samples, colour by colour.
+    phases: [Vec<[f64; CHUNK]>; 3],
+    /// The same per pixel in PDM's order: its reference colour, then the others.
+    ordered: [Vec<[f64; CHUNK]>; 3],
+}
+
+impl ChunkScratch {
+    fn new(samples: usize) -> Self {
+        let values = || vec![[f64::NAN; CHUNK]; samples];
+        Self {
+            along: [Vector3::zeros(); CHUNK],
+            dmd: [values(), values()],
+            phases: [values(), values(), values()],
+            ordered: [values(), values(), values()],
+        }
+    }
+}
+
+/// PDM's position per pixel of a chunk: the segment ([`NO_SEGMENT`] for
+/// none), the fraction along it, and the two other colours' summed squared
+/// distance to their nearest orders there, cycles² (infinite for none).
+struct PdmBest {
+    segment: [f64; CHUNK],
+    tau: [f64; CHUNK],
+    score: [f64; CHUNK],
+}
+
+/// A chunk's running values (`N` arrays, one value per pixel), kept twice:
+/// each step reads one copy and writes the other. Updated in place, a lane
+/// that keeps its value became a masked store, which AMD's cores run slowly.
+struct PingPong<const N: usize> {
+    copies: [[[f64; CHUNK]; N]; 2],
+    current: usize,
+}
+
+impl<const N: usize> PingPong<N> {
+    /// Every pixel starting at `start`.
+    fn new(start: [f64; N]) -> Self {
+        let copy = start.map(|v| [v; CHUNK]);
+        Self {
+            copies: [copy, copy],
+            current: 0,
+        }
+    }
+
+    /// The current values and the copy to write the next ones into, which
+    /// then become current.
+    #[inline(always)]
+    fn step(&mut self) -> (&[[f64; CHUNK]; N], &mut [[f64; CHUNK]; N]) {
+        let [even, odd] = &mut self.copies;
+        let flip = self.current == 0;
+        self.current ^= 1;
+        if flip {
+            (even, odd)
+        } else {
+            (odd, even)
+        }
+    }
+
+    /// The current values.
+    #[inline(always)]
+    fn current(self) -> [[f64; CHUNK]; N] {
+        self.copies[self.current]
+    }
+}
+
+/// One segment's step of [`Decoder::depth_steps`]: per pixel, segment `j`
+/// (its ends' phases `pair`) replaces the bracket in `was` (rank, segment)
+/// where it brackets `absolute` and ranks nearer to `near`; the result goes
+/// to `now`. Its own function so that `was` and `now` are known apart:
+/// inlined, the copies' aliasing kept the loop scalar.
+#[inline(always)]
+fn nearer_brackets(
+    (j, pair): (usize, &[[f64; CHUNK]]),
+    absolute: &[f64; CHUNK],
+    near: &[f64; CHUNK],
+    was: &[[f64; CHUNK]; 2],
+    now: &mut [[f64; CHUNK]; 2],
+) {
+    let (a, b) = (&pair[0], &pair[1]);
+    let here = j as f64;
+    for k in 0..CHUNK {
+        let (pa, pb, target) = (a[k], b[k], absolute[k]);
+        // NaN (no absolute phase) brackets nothing.
+        let brackets =
+            pa.is_finite() & pb.is_finite() & ((pa - target) * (pb - target) <= 0.0) & (pa != pb);
+        let d = here - near[k];
+        let r = if d < 0.0 { -2.0 * d - 1.0 } else { 2.0 * d };
+        let take = brackets & (r < was[0][k]);
+        // Computed values only: a choice between two loaded values became a
+        // choice of addresses and lane-by-lane loads.
+        now[0][k] = if take { r } else { was[0][k] };
+        now[1][k] = if take { here } else { was[1][k] };
+    }
+}
+
+/// Per pixel, its `segment` as an index of the samples (0 where it has
+/// none), for [`at_segments`] over `samples` samples.
+#[inline(always)]
+fn segment_indices(segment: &[f64; CHUNK], samples: usize) -> [usize; CHUNK] {
+    let last = samples as i32 - 2;
+    // Through i32, which converts in vector lanes; NO_SEGMENT and NaN give 0.
+    segment.map(|j| (j as i32).clamp(0, last) as usize)
+}
+
+/// Per pixel, the values at both ends of its segment `index` (`values` per
+/// sample, [`segment_indices`]).
+#[inline(always)]
+fn at_segments(values: &[[f64; CHUNK]], index: &[usize; CHUNK]) -> [[f64; CHUNK]; 2] {
+    let mut ends = [[f64::NAN; CHUNK]; 2];
+    for k in 0..CHUNK {
+        let j = index[k];
+        ends[0][k] = values[j][k];
+        ends[1][k] = values[j + 1][k];
+    }
+    ends
+}
+
+/// Per pixel, the colours' phases and wrapped phases in PDM's order: first
+/// the reference, the colour with the most cycles along the whole segment
+/// (the last of equals; NaN spans count as most), then the other two in
+/// colour order. The phases go into `ordered`, the wrapped phases are returned.
+#[inline(always)]
+fn reference_first(
+    phases: &[Vec<[f64; CHUNK]>; 3],
+    wrapped: &[[f64; CHUNK]; 3],
+    ordered: &mut [Vec<[f64; CHUNK]>; 3],
+) -> [[f64; CHUNK]; 3] {
+    // Per pixel, the reference colour as a float (lanes of one width).
+    let mut reference = [0.0f64; CHUNK];
+    let last = phases[0].len() - 1;
+    for (k, r) in reference.iter_mut().enumerate() {
+        let span = |c: usize| (phases[c][last][k] - phases[c][0][k]).abs();
+        let (mut most, mut pick) = (span(0), 0.0);
+        for c in 1..3 {
+            // A NaN span counts as most, as total ordering has it (spans are
+            // absolute values: no negative NaN).
+            let later = (span(c) >= most) | span(c).is_nan();
+            most = if later { span(c) } else { most };
+            pick = if later { c as f64 } else { pick };
+        }
+        *r = pick;
+    }
+    // Slot 0 holds the reference, slots 1 and 2 the others in colour order.
+    let pick = |r: f64, slot: usize, values: [f64; 3]| match slot {
+        0 => {
+            let low = if r == 0.0 { values[0] } else { values[1] };
+            if r == 2.0 {
+                values[2]
+            } else {
+                low
+            }
+        }
+        1 => {
+            if r == 0.0 {
+                values[1]
+            } else {
+                values[0]
+            }
+        }
+        _ => {
+            if r == 2.0 {
+                values[1]
+            } else {
+                values[2]
+            }
+        }
+    };
+    for (slot, out) in ordered.iter_mut().enumerate() {
+        for (j, to) in out.iter_mut().enumerate() {
+            let from = [&phases[0][j], &phases[1][j], &phases[2][j]];
+            for k in 0..CHUNK {
+                to[k] = pick(reference[k], slot, [from[0][k], from[1][k], from[2][k]]);
+            }
+        }
+    }
+    let mut wrapped_ordered = [[f64::NAN; CHUNK]; 3];
+    for (slot, to) in wrapped_ordered.iter_mut().enumerate() {
+        for k in 0..CHUNK {
+            to[k] = pick(
+                reference[k],
+                slot,
+                [wrapped[0][k], wrapped[1][k], wrapped[2][k]],
+            );
+        }
+    }
+    wrapped_ordered
+}
+
+/// PDM along each pixel's epipolar samples (seed 001, eq. 4), for a chunk's
+/// pixels at once: `ordered[c][j][k]` is colour `c`'s phase (cycles) at sample
+/// `j` of pixel `k`, the reference colour first ([`reference_first`]),
+/// `wrapped[c][k]` its measured wrapped phase (cycles, NaN for a pixel not
+/// decoded). Each integer order of the reference colour gives a position
+/// (segment `j`, fraction `tau`); the position where the other two agree best
+/// wins, the first one of equals. Segments are half open, so a sample's
+/// order counts once.
+#[inline(always)]
+fn pdm_lanes(ordered: &[Vec<[f64; CHUNK]>; 3], wrapped: &[[f64; CHUNK]; 3]) -> PdmBest {
+    // Score, fraction and segment of the best position so far.
+    let mut running = PingPong::new([f64::INFINITY, f64::NAN, NO_SEGMENT]);
+    let samples = ordered[0].len();
+    let w = wrapped;
+    for j in 0..samples - 1 {
+        let [a, b] = [j, j + 1].map(|j| [&ordered[0][j], &ordered[1][j], &ordered[2][j]]);
+        // The reference colour's orders on this segment, per pixel: the first
+        // one and how many (orders as floats: a float-to-int cast is a
+        // scalar conversion with checks).
+        let mut first = [0.0f64; CHUNK];
+        let mut count = [0.0f64; CHUNK];
+        let mut per_cycle = [0.0f64; CHUNK];
+        for k in 0..CHUNK {
+            let (pa, pb, wr) = (a[0][k], b[0][k], w[0][k]);
+            let usable = pa.is_finite() & pb.is_finite() & (pa != pb);
+            first[k] = (pa.min(pb) - wr).ceil();
+            let orders = (pa.max(pb) - wr).floor() - first[k] + 1.0;
+            // NaN (a pixel not decoded) fails this too.
+            count[k] = if usable & (orders > 0.0) { orders } else { 0.0 };
+            per_cycle[k] = 1.0 / (pb - pa);
+        }
+        let most = count.iter().fold(0.0f64, |m, &c| m.max(c));
+        let open_end = j + 2 < samples;
+        for q in 0..most as usize {
+            let q = q as f64;
+            let (was, now) = running.step();
+            let orders = [&first, &count, &per_cycle];
+            better_positions(j, q, open_end, [a, b], w, orders, was, now);
+        }
+    }
+    let [score, tau, segment] = running.current();
+    PdmBest {
+        segment,
+        tau,
+        score,
+    }
+}
+
+/// One order's step of [`pdm_lanes`]: per pixel, order `first + q` of the
+/// reference colour on segment `j` (of `count`, `per_cycle` its inverse
+/// phase step) replaces the position in `was` (score, fraction, segment)
+/// where it is valid and the other two colours agree better; the result
+/// goes to `now`. Its own function so that `was` and `now` are known apart
+/// (see [`nearer_brackets`]).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn better_positions(
+    j: usize,
+    q: f64,
+    open_end: bool,
+    [a, b]: [[&[f64; CHUNK]; 3]; 2],
+    w: &[[f64; CHUNK]; 3],
+    [first, count, per_cycle]: [&[f64; CHUNK]; 3],
+    was: &[[f64; CHUNK]; 3],
+    now: &mut [[f64; CHUNK]; 3],
+) {
+    for k in 0..CHUNK {
+        let tau = (w[0][k] + (first[k] + q) - a[0][k]) * per_cycle[k];
+        // Colour c's squared distance to its nearest order at tau.
+        let miss = |c: usize| {
+            let d = a[c][k] + tau * (b[c][k] - a[c][k]) - w[c][k];
+            let e = d - d.round();
+            e * e
+        };
+        let valid = (q < count[k]) & !((tau >= 1.0) & open_end);
+        let score = miss(1) + miss(2);
+        let better = valid & (score < was[0][k]);
+        // Value by value (see [`nearer_brackets`]).
+        now[0][k] = if better { score } else { was[0][k] };
+        now[1][k] = if better { tau } else { was[1][k] };
+        now[2][k] = if better { j as f64 } else { was[2][k] };
+    }
+}
+
+/// Per pixel, a colour's absolute phase (cycles): its measured wrapped phase
+/// `wrapped` plus the order nearest to its phase at PDM's position; NaN
+/// where no position was `kept`. `phases` per sample, as in [`ChunkScratch`].
+#[inline(always)]
+fn absolute_orders(
+    phases: &[[f64; CHUNK]],
+    wrapped: &[f64; CHUNK],
+    pdm: &PdmBest,
+    kept: &[bool; CHUNK],
+) -> [f64; CHUNK] {
+    let [start, end] = at_segments(phases, &segment_indices(&pdm.segment, phases.len()));
+    let mut absolute = [f64::NAN; CHUNK];
+    for k in 0..CHUNK {
+        let predicted = start[k] + pdm.tau[k] * (end[k] - start[k]);
+        let order = (predicted - wrapped[k]).round();
+        absolute[k] = if kept[k] {
+            wrapped[k] + order
+        } else {
+            f64::NAN
+        };
+    }
+    absolute
 }
 
 /// `samples` points evenly in inverse depth over `depth_range_m` (near, far):
@@ -622,63 +931,6 @@ fn fewest_samples(
         .unwrap_or(config.samples)
 }
 
-/// PDM along one pixel's epipolar samples: `phases[c][j]` is colour `c`'s phase
-/// (cycles) at sample `j`, `wrapped[c]` its measured wrapped phase (cycles). Each
-/// integer order of the colour with the most cycles gives a position (segment `j`,
-/// fraction `tau`); the position where the other two agree best wins. Returns
-/// (j, tau, RMS disagreement in cycles).
-#[inline(always)]
-pub fn pdm_along(phases: &[&[f64]; 3], wrapped: &[f64; 3]) -> Option<(usize, f64, f64)> {
-    let len = phases[0].len();
-    let span = |c: usize| (phases[c][len - 1] - phases[c][0]).abs();
-    let r = (0..3).max_by(|&a, &b| span(a).total_cmp(&span(b)))?;
-    let others = match r {
-        0 => [1, 2],
-        1 => [0, 2],
-        _ => [0, 1],
-    };
-    // Colour c's squared distance to its nearest order at (j, tau).
-    let miss = |c: usize, j: usize, tau: f64| {
-        let at = phases[c][j] + tau * (phases[c][j + 1] - phases[c][j]);
-        let d = at - wrapped[c];
-        let e = d - d.round();
-        e * e
-    };
-    let mut best: Option<(usize, f64)> = None;
-    let mut best_score = f64::INFINITY;
-    for j in 0..len - 1 {
-        let (a, b) = (phases[r][j], phases[r][j + 1]);
-        if !(a.is_finite() && b.is_finite()) || a == b {
-            continue;
-        }
-        let per_cycle = 1.0 / (b - a);
-        let (lo, hi) = (a.min(b), a.max(b));
-        // Orders as floats: a float-to-int cast is a scalar conversion with checks.
-        let mut k = (lo - wrapped[r]).ceil();
-        let last = (hi - wrapped[r]).floor();
-        while k <= last {
-            let tau = (wrapped[r] + k - a) * per_cycle;
-            k += 1.0;
-            // Half-open segments, so a sample's order is counted once.
-            if tau >= 1.0 && j + 2 < len {
-                continue;
-            }
-            // Most orders miss already on the first colour: the second can
-            // only add, so they are out without it (the same winner).
-            let first = miss(others[0], j, tau);
-            if first >= best_score {
-                continue;
-            }
-            let score = first + miss(others[1], j, tau);
-            if score < best_score {
-                best_score = score;
-                best = Some((j, tau));
-            }
-        }
-    }
-    best.map(|(j, tau)| (j, tau, (best_score / 2.0).sqrt()))
-}
-
 /// The camera ray `(x, y, 1)` turned into the projector frame: with `t` the
 /// pose's translation, the point at inverse depth `s` on the ray is
 /// `(along + s t) / s` there.
@@ -725,6 +977,44 @@ mod tests {
     use crate::synth::high_speed::high_speed_head;
 
     #[test]
+    fn pdm_finds_each_pixels_position_whichever_colour_leads() {
+        // 7 samples; per lane the three colours' phases grow linearly with
+        // different rates, the fastest (PDM's reference) in a different
+        // colour lane by lane, and the surface at a different place.
+        let samples = 7;
+        let rates = [[1.3, 1.1, 0.9], [0.9, 1.3, 1.1], [1.1, 0.9, 1.3]];
+        let mut phases = [0, 1, 2].map(|_| vec![[f64::NAN; CHUNK]; samples]);
+        let mut wrapped = [[f64::NAN; CHUNK]; 3];
+        let mut truth = [f64::NAN; CHUNK];
+        for k in 0..CHUNK - 4 {
+            let rate = rates[k % 3];
+            // The true position along the samples, 0 to 6, off the samples.
+            let at = 0.05 + 5.9 * (k as f64 + 0.37) / CHUNK as f64;
+            truth[k] = at;
+            for c in 0..3 {
+                for (j, ph) in phases[c].iter_mut().enumerate() {
+                    ph[k] = 2.0 + rate[c] * j as f64;
+                }
+                let phase = 2.0 + rate[c] * at;
+                wrapped[c][k] = phase - phase.floor();
+            }
+        }
+        let mut ordered = [0, 1, 2].map(|_| vec![[f64::NAN; CHUNK]; samples]);
+        let wrapped_ordered = reference_first(&phases, &wrapped, &mut ordered);
+        let best = pdm_lanes(&ordered, &wrapped_ordered);
+        for k in 0..CHUNK {
+            if k < CHUNK - 4 {
+                let found = best.segment[k] + best.tau[k];
+                assert!((found - truth[k]).abs() < 1e-9, "lane {k}: {found} for {}", truth[k]);
+                assert!(best.score[k] < 1e-18, "lane {k}: score {}", best.score[k]);
+            } else {
+                // The last lanes are not decoded (NaN wrapped phases).
+                assert_eq!(best.segment[k], NO_SEGMENT, "lane {k}");
+            }
+        }
+    }
+
+    #[test]
     fn the_depth_step_lands_within_a_micrometre_of_the_exact_depth() {
         let dmd_px = (1280, 800);
         let lens = Distortion {
@@ -747,29 +1037,41 @@ mod tests {
                 let dmd: Vec<[f64; 2]> = (0..decoder.samples())
                     .map(|j| dmd_on_ray(c2p, projector, &along, s0 + j as f64 * ds).unwrap())
                     .collect();
+                // Every lane of a chunk is this pixel.
+                let lanes =
+                    |c: usize| -> Vec<[f64; CHUNK]> { dmd.iter().map(|p| [p[c]; CHUNK]).collect() };
+                let (u, v) = (lanes(0), lanes(1));
                 for pat in decoder.set.patterns() {
                     let g = pat.frequency;
-                    let ph: Vec<f64> = dmd.iter().map(|p| g[0] * p[0] + g[1] * p[1]).collect();
+                    let ph: Vec<[f64; CHUNK]> = dmd
+                        .iter()
+                        .map(|p| [g[0] * p[0] + g[1] * p[1]; CHUNK])
+                        .collect();
+                    // One lane per depth and PDM segment: the surface at depth
+                    // z gives this absolute phase; PDM puts the pixel in its
+                    // segment or the next one.
+                    let (mut absolute, mut near, mut depth) =
+                        ([f64::NAN; CHUNK], [NO_SEGMENT; CHUNK], [f64::NAN; CHUNK]);
+                    let mut lane = 0;
                     for z in [0.4, 0.47, 0.5, 0.55, 0.61, 0.65] {
-                        // The surface at depth z gives this absolute phase; PDM
-                        // puts the pixel in its segment or the next one.
                         let p = dmd_on_ray(c2p, projector, &along, 1.0 / z).unwrap();
-                        let absolute = g[0] * p[0] + g[1] * p[1];
                         let segment = ((1.0 / z - s0) / ds) as usize;
-                        for near in [segment.saturating_sub(1), segment, segment + 1] {
-                            let near = near.min(ph.len() - 2);
-                            let Some(step) = decoder.depth_step(&ph, &dmd, absolute, near, s0, ds)
-                            else {
-                                continue;
-                            };
-                            let s = step.solve(c2p, projector, &along, g);
-                            // What the decoder keeps (NaN fails it too).
-                            if s.is_nan() || s <= 0.0 {
-                                continue;
-                            }
-                            solved += 1;
-                            worst_um = worst_um.max(1e6 * (1.0 / s - z).abs());
+                        for n in [segment.saturating_sub(1), segment, segment + 1] {
+                            absolute[lane] = g[0] * p[0] + g[1] * p[1];
+                            near[lane] = n.min(ph.len() - 2) as f64;
+                            depth[lane] = z;
+                            lane += 1;
                         }
+                    }
+                    let steps = decoder.depth_steps(&ph, [&u, &v], &absolute, &near);
+                    for (step, z) in steps.iter().zip(depth).take(lane) {
+                        let s = step.solve(c2p, projector, &along, g);
+                        // What the decoder keeps (NaN fails it too).
+                        if s.is_nan() || s <= 0.0 {
+                            continue;
+                        }
+                        solved += 1;
+                        worst_um = worst_um.max(1e6 * (1.0 / s - z).abs());
                     }
                 }
             }

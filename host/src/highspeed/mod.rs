@@ -26,7 +26,7 @@ pub mod set;
 pub mod zocr;
 
 pub use crosstalk::crosstalk_from_flats;
-pub use decode::{pdm_along, Decoded, Decoder, DecoderConfig, InstantMap, MAX_SAMPLES};
+pub use decode::{Decoded, Decoder, DecoderConfig, InstantMap, MAX_SAMPLES};
 pub use demux::{Demultiplexed, Demultiplexer, DemuxOptions, Window, ZeroOrderRemoved};
 pub use fdd::FddNet;
 pub use learned::LearnedStage;
