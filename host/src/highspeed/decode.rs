@@ -1005,7 +1005,11 @@ mod tests {
         for k in 0..CHUNK {
             if k < CHUNK - 4 {
                 let found = best.segment[k] + best.tau[k];
-                assert!((found - truth[k]).abs() < 1e-9, "lane {k}: {found} for {}", truth[k]);
+                assert!(
+                    (found - truth[k]).abs() < 1e-9,
+                    "lane {k}: {found} for {}",
+                    truth[k]
+                );
                 assert!(best.score[k] < 1e-18, "lane {k}: score {}", best.score[k]);
             } else {
                 // The last lanes are not decoded (NaN wrapped phases).
