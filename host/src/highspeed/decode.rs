@@ -440,8 +440,10 @@ impl Decoder {
             let kept = pdm.score.map(|score| {
                 score.is_finite() & ((score / 2.0).sqrt() <= self.config.max_rms_cycles)
             });
+            // PDM's segment as an index, once for the three colours.
+            let index = segment_indices(&pdm.segment, dmd_u.len());
             for ((ph, w), pat) in phases.iter().zip(&wrapped).zip(&pats) {
-                let absolute = absolute_orders(ph, w, &pdm, &kept);
+                let absolute = absolute_orders(ph, w, &pdm, &index, &kept);
                 let steps = self.depth_steps(ph, [dmd_u, dmd_v], &absolute, &pdm.segment);
                 // The Newton step of each pixel: one projection; a pixel
                 // without a step gets NaN, which its maps already hold.
@@ -652,8 +654,9 @@ impl<const N: usize> PingPong<N> {
 /// One segment's step of [`Decoder::depth_steps`]: per pixel, segment `j`
 /// (its ends' phases `pair`) replaces the bracket in `was` (rank, segment)
 /// where it brackets `absolute` and ranks nearer to `near`; the result goes
-/// to `now`. Its own function so that `was` and `now` are known apart:
-/// inlined, the copies' aliasing kept the loop scalar.
+/// to `now`. Its own function so that `was` and `now` are known apart (its
+/// arguments do not alias): written in the caller, the copies' aliasing
+/// kept the loop scalar.
 #[inline(always)]
 fn nearer_brackets(
     (j, pair): (usize, &[[f64; CHUNK]]),
@@ -849,7 +852,7 @@ fn better_positions(
         let valid = (q < count[k]) & !((tau >= 1.0) & open_end);
         let score = miss(1) + miss(2);
         let better = valid & (score < was[0][k]);
-        // Value by value (see [`nearer_brackets`]).
+        // Computed values only (see [`nearer_brackets`]).
         now[0][k] = if better { score } else { was[0][k] };
         now[1][k] = if better { tau } else { was[1][k] };
         now[2][k] = if better { j as f64 } else { was[2][k] };
@@ -858,15 +861,17 @@ fn better_positions(
 
 /// Per pixel, a colour's absolute phase (cycles): its measured wrapped phase
 /// `wrapped` plus the order nearest to its phase at PDM's position; NaN
-/// where no position was `kept`. `phases` per sample, as in [`ChunkScratch`].
+/// where no position was `kept`. `phases` per sample, as in [`ChunkScratch`];
+/// `index` PDM's segments ([`segment_indices`]).
 #[inline(always)]
 fn absolute_orders(
     phases: &[[f64; CHUNK]],
     wrapped: &[f64; CHUNK],
     pdm: &PdmBest,
+    index: &[usize; CHUNK],
     kept: &[bool; CHUNK],
 ) -> [f64; CHUNK] {
-    let [start, end] = at_segments(phases, &segment_indices(&pdm.segment, phases.len()));
+    let [start, end] = at_segments(phases, index);
     let mut absolute = [f64::NAN; CHUNK];
     for k in 0..CHUNK {
         let predicted = start[k] + pdm.tau[k] * (end[k] - start[k]);
