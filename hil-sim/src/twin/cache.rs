@@ -6,11 +6,12 @@
 use nalgebra::Point3;
 use rayon::prelude::*;
 
-use super::device::{Pinhole, Rig};
+use super::device::{Pinhole, Projector, Rig};
 use super::error::TwinError;
 use super::geometry::{Ray, V3};
 use super::medium::Medium;
-use super::scene::PosedScene;
+use super::mesh::PACKET;
+use super::scene::{Hit, Material, PosedScene};
 
 /// Why a camera pixel is or is not lit by one projector.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -212,8 +213,8 @@ impl CameraGeometry {
             .into_par_iter()
             .zip(rays.rays.par_chunks(w as usize))
             .for_each(|(mut row, row_rays)| {
-                for (x, ray) in row_rays.iter().enumerate() {
-                    pixel(scene, rig, camera, ray.as_ref(), &mut row, x);
+                for (c, chunk) in row_rays.chunks(PACKET).enumerate() {
+                    pixels(scene, rig, camera, chunk, &mut row, c * PACKET);
                 }
             });
         let views = &g.projectors;
@@ -323,35 +324,112 @@ fn camera_ray(rig: &Rig, camera: usize, x: f64, y: f64) -> Option<Ray> {
     }
 }
 
-/// Fills pixel `x` of `row`: what camera ray `ray` hits and how each
-/// projector lights it.
-fn pixel(
+/// Fills pixels `x0 .. x0 + rays.len()` (at most [`PACKET`]) of `row`: what
+/// each camera ray hits and how each projector lights it. Neighbouring
+/// pixels' rays, and their shadow rays toward one projector, are cast as one
+/// packet (see `mesh::packet`); every pixel gets what it would get alone.
+fn pixels(
     scene: &PosedScene,
     rig: &Rig,
     camera: usize,
-    ray: Option<&Ray>,
+    rays: &[Option<Ray>],
     row: &mut RowOut,
-    x: usize,
+    x0: usize,
 ) {
+    let direct = scene.scene().ambient_direct.map(|a| a as f32);
+    // Lanes: the pixels that have a ray.
+    let mut cast = [Ray::IDLE; PACKET];
+    let mut lane_x = [0usize; PACKET];
+    let mut n = 0;
+    for (i, ray) in rays.iter().enumerate() {
+        match ray {
+            Some(ray) => {
+                (cast[n], lane_x[n]) = (*ray, x0 + i);
+                n += 1;
+            }
+            None => miss(row, x0 + i, direct),
+        }
+    }
+    let hits = scene.intersect_packet(&cast[..n], 0.0, f64::INFINITY);
+    let mut surfaces: [Option<Surface>; PACKET] = [const { None }; PACKET];
+    for l in 0..n {
+        match hits[l] {
+            Some(hit) => {
+                let s = surface(scene, rig, camera, &cast[l], hit);
+                s.write(row, lane_x[l]);
+                surfaces[l] = Some(s);
+            }
+            None => miss(row, lane_x[l], direct),
+        }
+    }
+    for (pi, pr) in rig.projectors.iter().enumerate() {
+        // Lights known without a shadow test go straight in; the rest wait
+        // for one packet of shadow rays.
+        let mut waiting: [Option<(usize, ShadowTest)>; PACKET] = [None; PACKET];
+        let (mut from, mut to) = ([V3::zeros(); PACKET], [V3::zeros(); PACKET]);
+        let mut m = 0;
+        for l in 0..n {
+            let Some(s) = &surfaces[l] else { continue };
+            match toward(pr, &rig.medium, s) {
+                Light::Known(state) => row.proj[pi].set(lane_x[l], state),
+                Light::ShadowTest(test) => {
+                    (from[m], to[m]) = (test.start, test.aim);
+                    waiting[m] = Some((l, test));
+                    m += 1;
+                }
+            }
+        }
+        let blocked = scene.occluded_packet(&from[..m], &to[..m]);
+        for (k, w) in waiting.iter().take(m).enumerate() {
+            let Some((l, test)) = w else { continue };
+            let Some(s) = &surfaces[*l] else { continue };
+            let state = if blocked[k] {
+                (test.uv, [0.0; 3], Illum::Shadowed)
+            } else {
+                lit(pr, &rig.medium, s, test)
+            };
+            row.proj[pi].set(lane_x[*l], state);
+        }
+    }
+}
+
+/// Pixel `x` of `row` sees nothing.
+fn miss(row: &mut RowOut, x: usize, direct: [f32; 3]) {
+    row.depth[x] = f32::NAN;
+    row.point[x] = NAN3;
+    row.normal[x] = NAN3;
+    row.object[x] = u16::MAX;
+    row.ambient[x] = direct;
+    row.water[x] = 0.0;
+    row.proj
+        .iter_mut()
+        .for_each(|p| p.set(x, (NAN2, [0.0; 3], Illum::NoSurface)));
+}
+
+/// What a camera ray hit, with what its projectors' light needs.
+struct Surface<'s> {
+    hit: Hit,
+    material: &'s Material,
+    albedo: [f32; 3],
+    /// Unit vector from the point toward the camera (its port in water).
+    v: V3,
+    /// Camera-side water path, metres (0 in air).
+    water_c: f64,
+    /// z in the camera frame, metres.
+    depth_m: f64,
+    ambient: [f32; 3],
+}
+
+/// The surface camera ray `ray` of `camera` meets at `hit`.
+fn surface<'s>(
+    scene: &'s PosedScene,
+    rig: &Rig,
+    camera: usize,
+    ray: &Ray,
+    hit: Hit,
+) -> Surface<'s> {
     let s = scene.scene();
     let direct = s.ambient_direct.map(|a| a as f32);
-    let miss = |row: &mut RowOut| {
-        row.depth[x] = f32::NAN;
-        row.point[x] = NAN3;
-        row.normal[x] = NAN3;
-        row.object[x] = u16::MAX;
-        row.ambient[x] = direct;
-        row.water[x] = 0.0;
-        row.proj
-            .iter_mut()
-            .for_each(|p| p.set(x, (NAN2, [0.0; 3], Illum::NoSurface)));
-    };
-    let Some(ray) = ray else {
-        return miss(row);
-    };
-    let Some(hit) = scene.intersect(ray, 0.0, f64::INFINITY) else {
-        return miss(row);
-    };
     let cam_model = &rig.cameras[camera].model;
     let p_cam = cam_model
         .world_from_device
@@ -372,73 +450,125 @@ fn pixel(
         let on_surface = s.ambient_surface[b] + material.ambient[b] as f64;
         albedo[b] * (on_surface * cam_trans[b]) as f32 + direct[b]
     });
-    for (pi, pr) in rig.projectors.iter().enumerate() {
-        let state = (|| {
-            let model = &pr.model;
-            let q = model
-                .world_from_device
-                .inverse_transform_point(&Point3::from(hit.point_m))
-                .coords;
-            // Where the light leaves the device: its centre, or its port crossing in water.
-            let (aim_local, water_p) = match &rig.medium {
-                Medium::Air => (Some(V3::zeros()), 0.0),
-                Medium::Water(wtr) => match wtr.port_crossing(&q) {
-                    Some(c) => (Some(c), (q - c).norm()),
-                    None => (None, 0.0),
-                },
-            };
-            let Some(aim_local) = aim_local else {
-                return (NAN2, [0.0; 3], Illum::OutsideDmd);
-            };
-            let dir_local = if aim_local.norm() > 0.0 { aim_local } else { q };
-            let Some(uv) = model.project_local(&dir_local) else {
-                return (NAN2, [0.0; 3], Illum::OutsideDmd);
-            };
-            let uv32 = [uv[0] as f32, uv[1] as f32];
-            if !model.contains(uv) {
-                return (uv32, [0.0; 3], Illum::OutsideDmd);
-            }
-            let aim = model
-                .world_from_device
-                .transform_point(&Point3::from(aim_local))
-                .coords;
-            let l = (aim - hit.point_m).normalize();
-            let cos_i = hit.normal.dot(&l);
-            if cos_i <= 0.0 || hit.normal.dot(&v) <= 0.0 {
-                return (uv32, [0.0; 3], Illum::BackFacing);
-            }
-            // Start the shadow ray just off the surface to avoid self-hits.
-            let start = hit.point_m + hit.normal * 1e-6;
-            if scene.occluded(&start, &aim) {
-                return (uv32, [0.0; 3], Illum::Shadowed);
-            }
-            let falloff = (pr.reference_distance_m / q.norm()).powi(2);
-            let half = (l + v).normalize();
-            let spec = if material.specular > 0.0 {
-                material.specular as f64
-                    * hit
-                        .normal
-                        .dot(&half)
-                        .max(0.0)
-                        .powf(material.shininess as f64)
-            } else {
-                0.0
-            };
-            let trans = match &rig.medium {
-                Medium::Air => [1.0; 3],
-                Medium::Water(wtr) => wtr.transmittance(water_p + water_c),
-            };
-            let gain = [0, 1, 2].map(|b| {
-                (pr.led_power[b] * falloff * (albedo[b] as f64 * cos_i + spec) * trans[b]) as f32
-            });
-            (uv32, gain, Illum::Lit)
-        })();
-        row.proj[pi].set(x, state);
+    Surface {
+        hit,
+        material,
+        albedo,
+        v,
+        water_c,
+        depth_m: p_cam.z,
+        ambient,
     }
-    row.depth[x] = p_cam.z as f32;
-    row.point[x] = f3(&hit.point_m);
-    row.normal[x] = f3(&hit.normal);
-    row.object[x] = hit.object as u16;
-    row.ambient[x] = ambient;
-    row.water[x] = water_c as f32;
+}
+
+impl Surface<'_> {
+    /// The camera's own outputs at pixel `x`.
+    fn write(&self, row: &mut RowOut, x: usize) {
+        row.depth[x] = self.depth_m as f32;
+        row.point[x] = f3(&self.hit.point_m);
+        row.normal[x] = f3(&self.hit.normal);
+        row.object[x] = self.hit.object as u16;
+        row.ambient[x] = self.ambient;
+        row.water[x] = self.water_c as f32;
+    }
+}
+
+/// One projector's light on a surface point: known at once (off the DMD,
+/// facing away), or waiting for the shadow ray toward the projector.
+enum Light {
+    Known(([f32; 2], [f32; 3], Illum)),
+    ShadowTest(ShadowTest),
+}
+
+/// A lit-unless-shadowed point, with what its shading needs.
+#[derive(Clone, Copy)]
+struct ShadowTest {
+    uv: [f32; 2],
+    /// Shadow ray from just off the surface to where the light leaves the projector.
+    start: V3,
+    aim: V3,
+    /// Unit vector toward the projector and its cosine with the normal.
+    l: V3,
+    cos_i: f64,
+    /// Distance from the projector's centre, metres.
+    dist_m: f64,
+    /// Projector-side water path, metres.
+    water_p: f64,
+}
+
+/// Where projector `pr`'s light meets surface `s`, up to the shadow test.
+fn toward(pr: &Projector, medium: &Medium, s: &Surface) -> Light {
+    let hit = &s.hit;
+    let model = &pr.model;
+    let q = model
+        .world_from_device
+        .inverse_transform_point(&Point3::from(hit.point_m))
+        .coords;
+    // Where the light leaves the device: its centre, or its port crossing in water.
+    let (aim_local, water_p) = match medium {
+        Medium::Air => (Some(V3::zeros()), 0.0),
+        Medium::Water(wtr) => match wtr.port_crossing(&q) {
+            Some(c) => (Some(c), (q - c).norm()),
+            None => (None, 0.0),
+        },
+    };
+    let Some(aim_local) = aim_local else {
+        return Light::Known((NAN2, [0.0; 3], Illum::OutsideDmd));
+    };
+    let dir_local = if aim_local.norm() > 0.0 { aim_local } else { q };
+    let Some(uv) = model.project_local(&dir_local) else {
+        return Light::Known((NAN2, [0.0; 3], Illum::OutsideDmd));
+    };
+    let uv32 = [uv[0] as f32, uv[1] as f32];
+    if !model.contains(uv) {
+        return Light::Known((uv32, [0.0; 3], Illum::OutsideDmd));
+    }
+    let aim = model
+        .world_from_device
+        .transform_point(&Point3::from(aim_local))
+        .coords;
+    let l = (aim - hit.point_m).normalize();
+    let cos_i = hit.normal.dot(&l);
+    if cos_i <= 0.0 || hit.normal.dot(&s.v) <= 0.0 {
+        return Light::Known((uv32, [0.0; 3], Illum::BackFacing));
+    }
+    Light::ShadowTest(ShadowTest {
+        uv: uv32,
+        // Start the shadow ray just off the surface to avoid self-hits.
+        start: hit.point_m + hit.normal * 1e-6,
+        aim,
+        l,
+        cos_i,
+        dist_m: q.norm(),
+        water_p,
+    })
+}
+
+/// Projector `pr`'s gain on surface `s` where the shadow ray `t` got through.
+fn lit(
+    pr: &Projector,
+    medium: &Medium,
+    s: &Surface,
+    t: &ShadowTest,
+) -> ([f32; 2], [f32; 3], Illum) {
+    let falloff = (pr.reference_distance_m / t.dist_m).powi(2);
+    let half = (t.l + s.v).normalize();
+    let spec = if s.material.specular > 0.0 {
+        s.material.specular as f64
+            * s.hit
+                .normal
+                .dot(&half)
+                .max(0.0)
+                .powf(s.material.shininess as f64)
+    } else {
+        0.0
+    };
+    let trans = match medium {
+        Medium::Air => [1.0; 3],
+        Medium::Water(wtr) => wtr.transmittance(t.water_p + s.water_c),
+    };
+    let gain = [0, 1, 2].map(|b| {
+        (pr.led_power[b] * falloff * (s.albedo[b] as f64 * t.cos_i + spec) * trans[b]) as f32
+    });
+    (t.uv, gain, Illum::Lit)
 }

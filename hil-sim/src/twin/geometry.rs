@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use super::mesh::Mesh;
+use super::mesh::{Mesh, PACKET};
 pub use super::ray::{LocalHit, Pose, Ray, V3};
 
 /// The geometric primitives a scene object can be.
@@ -48,6 +48,42 @@ impl Shape {
         match self {
             Shape::Mesh(mesh) => mesh.occludes(ray, t_min, t_max),
             _ => self.intersect(ray, t_min, t_max).is_some(),
+        }
+    }
+
+    /// [`Self::intersect`] of up to [`PACKET`] rays (lane `l`: `rays[l]` up to
+    /// `t_max[l]`): a mesh walks its BVH once for all of them, other shapes
+    /// take the rays one by one. Lanes past `rays.len()` are None.
+    pub fn intersect_packet(
+        &self,
+        rays: &[Ray],
+        t_min: f64,
+        t_max: &[f64],
+    ) -> [Option<LocalHit>; PACKET] {
+        match self {
+            Shape::Mesh(mesh) => mesh.intersect_packet(rays, t_min, t_max),
+            _ => {
+                let mut hits = [None; PACKET];
+                for (l, ray) in rays.iter().enumerate() {
+                    hits[l] = self.intersect(ray, t_min, t_max[l]);
+                }
+                hits
+            }
+        }
+    }
+
+    /// [`Self::occludes`] of up to [`PACKET`] rays (lane `l`: `rays[l]` between
+    /// `t_min[l]` and `t_max[l]`); lanes past `rays.len()` are false.
+    pub fn occludes_packet(&self, rays: &[Ray], t_min: &[f64], t_max: &[f64]) -> [bool; PACKET] {
+        match self {
+            Shape::Mesh(mesh) => mesh.occludes_packet(rays, t_min, t_max),
+            _ => {
+                let mut blocked = [false; PACKET];
+                for (l, ray) in rays.iter().enumerate() {
+                    blocked[l] = self.occludes(ray, t_min[l], t_max[l]);
+                }
+                blocked
+            }
         }
     }
 }

@@ -11,6 +11,9 @@
 use super::error::TwinError;
 use super::ray::{LocalHit, Ray, V3};
 
+mod packet;
+pub use packet::PACKET;
+
 const BINS: usize = 12;
 const LEAF_MAX: usize = 4;
 /// Deepest inner node: traversal keeps at most one deferred child per
@@ -296,16 +299,21 @@ impl Mesh {
     /// Nearest hit with `t_min < t < t_max` (ray in the mesh frame).
     pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<LocalHit> {
         let (t, k) = self.traverse(ray, t_min, t_max, false)?;
+        Some(self.hit(ray, t, k))
+    }
+
+    /// The hit of `ray` on triangle `k` at distance `t`, its normal facing the ray.
+    fn hit(&self, ray: &Ray, t: f32, k: usize) -> LocalHit {
         let tri = &self.tris[k];
         let n = cross(tri.e1, tri.e2);
         let mut normal = V3::new(n[0] as f64, n[1] as f64, n[2] as f64).normalize();
         if normal.dot(&ray.dir) > 0.0 {
             normal = -normal;
         }
-        Some(LocalHit {
+        LocalHit {
             t_m: t as f64,
             normal,
-        })
+        }
     }
 
     /// Whether any triangle lies on the ray with `t_min < t < t_max`
@@ -315,7 +323,9 @@ impl Mesh {
     }
 
     /// BVH walk, nearer child first; returns (t, triangle index) of the
-    /// nearest hit, or of the first hit found when `any` is set.
+    /// nearest hit (of two at the same distance, the lower index, so that
+    /// any visiting order gives the same answer: see `packet`), or of the
+    /// first hit found when `any` is set.
     fn traverse(&self, ray: &Ray, t_min: f64, t_max: f64, any: bool) -> Option<(f32, usize)> {
         let o = [
             ray.origin.x as f32,
@@ -323,14 +333,7 @@ impl Mesh {
             ray.origin.z as f32,
         ];
         let d = [ray.dir.x as f32, ray.dir.y as f32, ray.dir.z as f32];
-        // No zero components: 0 * inf would be NaN in the slab test.
-        let inv = d.map(|c| {
-            1.0 / if c.abs() < 1e-12 {
-                1e-12f32.copysign(c)
-            } else {
-                c
-            }
-        });
+        let inv = d.map(safe_inv);
         let mut best_t = t_max as f32;
         let mut best: Option<usize> = None;
         let tmin = t_min as f32;
@@ -343,7 +346,10 @@ impl Mesh {
             let node = &self.nodes[ni];
             if node.count > 0 {
                 for k in node.first as usize..(node.first + node.count) as usize {
-                    if let Some(t) = tri_hit(&self.tris[k], o, d, tmin, best_t) {
+                    let Some(t) = tri_hit(&self.tris[k], o, d, tmin, best_t) else {
+                        continue;
+                    };
+                    if t < best_t || best.is_some_and(|b| k < b) {
                         best_t = t;
                         best = Some(k);
                         if any {
@@ -373,7 +379,8 @@ impl Mesh {
             while sp > 0 {
                 sp -= 1;
                 let (next, t_entry) = stack[sp];
-                if t_entry < best_t {
+                // `<=`: a node entered at the best distance may hold a tie of lower index.
+                if t_entry <= best_t {
                     ni = next as usize;
                     continue 'walk;
                 }
@@ -424,6 +431,8 @@ fn fmax(a: f32, b: f32) -> f32 {
     }
 }
 
+/// Möller–Trumbore: distance of the hit with `t_min < t <= t_max` (the caller
+/// decides a tie at `t_max`), or None.
 #[inline]
 fn tri_hit(t: &Tri, o: [f32; 3], d: [f32; 3], t_min: f32, t_max: f32) -> Option<f32> {
     let p = cross(d, t.e2);
@@ -443,7 +452,18 @@ fn tri_hit(t: &Tri, o: [f32; 3], d: [f32; 3], t_min: f32, t_max: f32) -> Option<
         return None;
     }
     let tt = dot(t.e2, q) * inv;
-    (tt > t_min && tt < t_max).then_some(tt)
+    (tt > t_min && tt <= t_max).then_some(tt)
+}
+
+/// 1 / c for a ray direction component, with no zero components: 0 * inf
+/// would be NaN in the slab test.
+#[inline(always)]
+fn safe_inv(c: f32) -> f32 {
+    1.0 / if c.abs() < 1e-12 {
+        1e-12f32.copysign(c)
+    } else {
+        c
+    }
 }
 
 /// Best binned-SAH split of `items` as (axis, first right bin), or None

@@ -18,6 +18,12 @@ pub struct Ray {
 }
 
 impl Ray {
+    /// A placeholder ray (origin, +z) for array slots not in use.
+    pub const IDLE: Ray = Ray {
+        origin: V3::new(0.0, 0.0, 0.0),
+        dir: V3::new(0.0, 0.0, 1.0),
+    };
+
     /// Point at distance `t_m` along the ray.
     pub fn at(&self, t_m: f64) -> V3 {
         self.origin + self.dir * t_m

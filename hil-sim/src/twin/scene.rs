@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use super::error::{non_negative, positive, TwinError};
 use super::geometry::{LocalHit, Pose, Ray, Shape, V3};
+use super::mesh::PACKET;
 
 /// An RGB texture mapped onto the local x-y plane of its object.
 #[derive(Clone, Debug)]
@@ -426,15 +427,54 @@ impl PosedScene<'_> {
             }
         }
         let (i, h, local) = best?;
+        Some(self.world_hit(i, h, &local))
+    }
+
+    /// [`Self::intersect`] of up to [`PACKET`] rays at once (each from `t_min`
+    /// to `t_max`): a mesh walks its BVH once for all of them. Lanes past
+    /// `rays.len()` are None.
+    pub fn intersect_packet(&self, rays: &[Ray], t_min: f64, t_max: f64) -> [Option<Hit>; PACKET] {
+        let n = rays.len();
+        assert!(n <= PACKET, "{n} rays in a packet of {PACKET}");
+        // Plain loops over arrays made once: `array::map` / `from_fn` of these
+        // structs cost a copy of the whole array each.
+        let mut nearest = [None::<(usize, LocalHit)>; PACKET];
+        let mut nearest_local = [Ray::IDLE; PACKET];
+        let mut local = [Ray::IDLE; PACKET];
+        let mut t_best = [t_max; PACKET];
+        for (i, obj) in self.scene.objects.iter().enumerate() {
+            for l in 0..n {
+                local[l] = self.ray_to_local(i, &rays[l]);
+            }
+            let hits = obj.shape.intersect_packet(&local[..n], t_min, &t_best[..n]);
+            for l in 0..n {
+                if let Some(h) = hits[l] {
+                    t_best[l] = h.t_m;
+                    nearest[l] = Some((i, h));
+                    nearest_local[l] = local[l];
+                }
+            }
+        }
+        let mut out = [None; PACKET];
+        for l in 0..n {
+            if let Some((i, h)) = nearest[l] {
+                out[l] = Some(self.world_hit(i, h, &nearest_local[l]));
+            }
+        }
+        out
+    }
+
+    /// Object `i`'s local hit `h` of the local ray `local`, in the world.
+    fn world_hit(&self, i: usize, h: LocalHit, local: &Ray) -> Hit {
         let pose = &self.poses[i];
         let local_m = local.at(h.t_m);
-        Some(Hit {
+        Hit {
             object: i,
             t_m: h.t_m,
             point_m: pose.transform_point(&Point3::from(local_m)).coords,
             normal: pose.rotation * h.normal,
             local_m,
-        })
+        }
     }
 
     /// Whether anything blocks the segment from `from_m` to `to_m`
@@ -451,6 +491,53 @@ impl PosedScene<'_> {
             o.shape
                 .occludes(&self.ray_to_local(i, &ray), eps, len - eps)
         })
+    }
+
+    /// [`Self::occluded`] of up to [`PACKET`] segments at once (lane `l`: from
+    /// `from_m[l]` to `to_m[l]`); lanes past `from_m.len()` are false.
+    pub fn occluded_packet(&self, from_m: &[V3], to_m: &[V3]) -> [bool; PACKET] {
+        let n = from_m.len();
+        assert!(
+            n <= PACKET && to_m.len() == n,
+            "{n} segments in a packet of {PACKET}"
+        );
+        let mut blocked = [false; PACKET];
+        // The same ray and margins as the one-segment query, lane by lane.
+        let mut ray = [Ray::IDLE; PACKET];
+        let (mut t_min, mut t_end) = ([0.0; PACKET], [0.0; PACKET]);
+        for l in 0..n {
+            let d = to_m[l] - from_m[l];
+            let len = d.norm();
+            let eps = 1e-7 * (1.0 + from_m[l].norm());
+            ray[l] = Ray {
+                origin: from_m[l],
+                dir: d / len,
+            };
+            (t_min[l], t_end[l]) = (eps, len - eps);
+        }
+        let mut local = [Ray::IDLE; PACKET];
+        let mut t_max = [0.0; PACKET];
+        for (i, o) in self.scene.objects.iter().enumerate() {
+            if blocked[..n].iter().all(|&b| b) {
+                break;
+            }
+            for l in 0..n {
+                local[l] = self.ray_to_local(i, &ray[l]);
+                // A lane already blocked needs no more tests: an empty interval.
+                t_max[l] = if blocked[l] {
+                    f64::NEG_INFINITY
+                } else {
+                    t_end[l]
+                };
+            }
+            let hit = o
+                .shape
+                .occludes_packet(&local[..n], &t_min[..n], &t_max[..n]);
+            for l in 0..n {
+                blocked[l] |= hit[l];
+            }
+        }
+        blocked
     }
 }
 
