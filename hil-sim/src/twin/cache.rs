@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use super::device::{Pinhole, Projector, Rig};
 use super::error::TwinError;
 use super::geometry::{Ray, V3};
+use super::huge_pages::advised;
 use super::medium::Medium;
 use super::mesh::PACKET;
 use super::scene::{Hit, Material, PosedScene};
@@ -97,8 +98,8 @@ impl ProjectorView {
     /// `n` pixels of nothing (zeroed maps cost no write until filled).
     fn empty(n: usize) -> ProjectorView {
         ProjectorView {
-            uv_px: vec![[0.0; 2]; n],
-            gain: vec![[0.0; 3]; n],
+            uv_px: advised(vec![[0.0; 2]; n]),
+            gain: advised(vec![[0.0; 3]; n]),
             illum: vec![Illum::NoSurface; n],
         }
     }
@@ -112,12 +113,12 @@ impl CameraGeometry {
         CameraGeometry {
             width,
             height,
-            depth_m: vec![0.0; n],
-            point_m: vec![[0.0; 3]; n],
-            normal: vec![[0.0; 3]; n],
+            depth_m: advised(vec![0.0; n]),
+            point_m: advised(vec![[0.0; 3]; n]),
+            normal: advised(vec![[0.0; 3]; n]),
             object: vec![0; n],
-            ambient: vec![[0.0; 3]; n],
-            water_path_m: vec![0.0; n],
+            ambient: advised(vec![[0.0; 3]; n]),
+            water_path_m: advised(vec![0.0; n]),
             projectors: (0..projectors).map(|_| ProjectorView::empty(n)).collect(),
             overlap: Vec::new(),
         }

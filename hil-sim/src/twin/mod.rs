@@ -52,6 +52,7 @@ pub mod dataset;
 pub mod device;
 pub mod error;
 pub mod geometry;
+mod huge_pages;
 pub mod io;
 pub mod medium;
 pub mod mesh;

@@ -200,10 +200,17 @@ fn slab_lanes(b: &Aabb, r: &Lanes, bound: &Lane<f32>) -> Lane<f32> {
     std::array::from_fn(|l| if t0[l] <= t1[l] { t0[l] } else { f32::INFINITY })
 }
 
-/// Smallest lane entry (+inf: no lane enters).
+/// Smallest lane entry (+inf: no lane enters), as a tree of pairs: three
+/// dependent steps, not eight.
 #[inline(always)]
 fn nearest(t: &Lane<f32>) -> f32 {
-    t.iter().fold(f32::INFINITY, |m, &x| fmin(m, x))
+    let four = [
+        fmin(t[0], t[4]),
+        fmin(t[1], t[5]),
+        fmin(t[2], t[6]),
+        fmin(t[3], t[7]),
+    ];
+    fmin(fmin(four[0], four[2]), fmin(four[1], four[3]))
 }
 
 /// Each lane's bound inside a leaf: its best so far where its ray entered
@@ -251,13 +258,12 @@ fn tri_lanes(t: &Tri, r: &Lanes, bound: &Lane<f32>) -> Lane<f32> {
 /// best, or as near with a lower index than a hit already found.
 #[inline(always)]
 fn take_nearer(t: &Lane<f32>, k: u32, best: &mut Lane<f32>, best_k: &mut Lane<u32>) {
-    for l in 0..PACKET {
-        let take = (t[l] < best[l]) | ((t[l] == best[l]) & (best_k[l] != NONE) & (k < best_k[l]));
-        if take {
-            best[l] = t[l];
-            best_k[l] = k;
-        }
-    }
+    let take: Lane<bool> = std::array::from_fn(|l| {
+        (t[l] < best[l]) | ((t[l] == best[l]) & (best_k[l] != NONE) & (k < best_k[l]))
+    });
+    // Whole new lanes, not updates in place (those become masked stores).
+    *best = std::array::from_fn(|l| if take[l] { t[l] } else { best[l] });
+    *best_k = std::array::from_fn(|l| if take[l] { k } else { best_k[l] });
 }
 
 #[cfg(test)]
