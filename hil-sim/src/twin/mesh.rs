@@ -6,7 +6,7 @@
 //! nearest-hit and any-hit queries on one flat cache-friendly layout in f32,
 //! and the candidates (`bvh`, `parry3d`) bring their own nalgebra/glam
 //! versions and far more than we use. It is about 250 lines and checked
-//! against brute force below.
+//! against brute force below; `packet.rs` walks it with eight rays at once.
 
 use super::error::TwinError;
 use super::ray::{LocalHit, Ray, V3};

@@ -261,7 +261,8 @@ fn take_nearer(t: &Lane<f32>, k: u32, best: &mut Lane<f32>, best_k: &mut Lane<u3
     let take: Lane<bool> = std::array::from_fn(|l| {
         (t[l] < best[l]) | ((t[l] == best[l]) & (best_k[l] != NONE) & (k < best_k[l]))
     });
-    // Whole new lanes, not updates in place (those become masked stores).
+    // Whole new lanes, not updates in place: those can become masked stores,
+    // slow on AMD (seen in the host's high-speed decoder).
     *best = std::array::from_fn(|l| if take[l] { t[l] } else { best[l] });
     *best_k = std::array::from_fn(|l| if take[l] { k } else { best_k[l] });
 }
