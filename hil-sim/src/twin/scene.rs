@@ -480,17 +480,12 @@ impl PosedScene<'_> {
     /// Whether anything blocks the segment from `from_m` to `to_m`
     /// (ends excluded by a small relative margin).
     pub fn occluded(&self, from_m: &V3, to_m: &V3) -> bool {
-        let d = to_m - from_m;
-        let len = d.norm();
-        let ray = Ray {
-            origin: *from_m,
-            dir: d / len,
-        };
-        let eps = 1e-7 * (1.0 + from_m.norm());
-        self.scene.objects.iter().enumerate().any(|(i, o)| {
-            o.shape
-                .occludes(&self.ray_to_local(i, &ray), eps, len - eps)
-        })
+        let (ray, t_min, t_max) = segment(from_m, to_m);
+        self.scene
+            .objects
+            .iter()
+            .enumerate()
+            .any(|(i, o)| o.shape.occludes(&self.ray_to_local(i, &ray), t_min, t_max))
     }
 
     /// [`Self::occluded`] of up to [`PACKET`] segments at once (lane `l`: from
@@ -506,14 +501,7 @@ impl PosedScene<'_> {
         let mut ray = [Ray::IDLE; PACKET];
         let (mut t_min, mut t_end) = ([0.0; PACKET], [0.0; PACKET]);
         for l in 0..n {
-            let d = to_m[l] - from_m[l];
-            let len = d.norm();
-            let eps = 1e-7 * (1.0 + from_m[l].norm());
-            ray[l] = Ray {
-                origin: from_m[l],
-                dir: d / len,
-            };
-            (t_min[l], t_end[l]) = (eps, len - eps);
+            (ray[l], t_min[l], t_end[l]) = segment(&from_m[l], &to_m[l]);
         }
         let mut local = [Ray::IDLE; PACKET];
         let mut t_max = [0.0; PACKET];
@@ -539,6 +527,20 @@ impl PosedScene<'_> {
         }
         blocked
     }
+}
+
+/// The ray from `from_m` toward `to_m` and the interval of it an occluder
+/// must lie in: the segment less a small margin at each end, relative to the
+/// start's distance from the origin (so a surface does not shadow itself).
+fn segment(from_m: &V3, to_m: &V3) -> (Ray, f64, f64) {
+    let d = to_m - from_m;
+    let len = d.norm();
+    let eps = 1e-7 * (1.0 + from_m.norm());
+    let ray = Ray {
+        origin: *from_m,
+        dir: d / len,
+    };
+    (ray, eps, len - eps)
 }
 
 #[cfg(test)]
