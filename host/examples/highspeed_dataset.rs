@@ -171,8 +171,11 @@ fn write_fdd_crops(
         set.clone(),
         head,
         DecoderConfig {
+            // FDD-Net corrects the single demodulation, without sibling
+            // cancellation (the decoder refuses it beside cancellation).
             demux: DemuxOptions {
                 crosstalk: Some(crosstalk),
+                cancellations: 0,
                 ..DemuxOptions::default()
             },
             ..config

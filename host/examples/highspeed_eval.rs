@@ -177,13 +177,14 @@ fn main() -> anyhow::Result<()> {
     let view = |l: usize| [&flats0[l][0][..], &flats0[l][1][..], &flats0[l][2][..]];
     let crosstalk = crosstalk_from_flats([view(0), view(1), view(2)], 0.995)?;
     println!("crosstalk measured from scene 0's three LED flats (channel <- LED): {crosstalk:.3}");
-    // (name, reference carrier, crosstalk, zero-order removal, refinements, learned stage)
+    // (name, reference carrier, crosstalk, zero-order removal, refinements, cancellations, learned stage)
     let mut variants = vec![
         (
             "linear carrier (FTP-like), raw channels",
             false,
             false,
             false,
+            0,
             0,
             Learned::No,
         ),
@@ -193,6 +194,7 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             0,
+            0,
             Learned::No,
         ),
         (
@@ -200,6 +202,7 @@ fn main() -> anyhow::Result<()> {
             true,
             false,
             true,
+            0,
             0,
             Learned::No,
         ),
@@ -209,6 +212,7 @@ fn main() -> anyhow::Result<()> {
             true,
             false,
             0,
+            0,
             Learned::No,
         ),
         (
@@ -216,6 +220,7 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             true,
+            0,
             0,
             Learned::No,
         ),
@@ -225,6 +230,7 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             1,
+            0,
             Learned::No,
         ),
         (
@@ -232,6 +238,25 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             true,
+            2,
+            0,
+            Learned::No,
+        ),
+        (
+            "analytic + sibling cancellation (stage 2: spatial-frequency decomposition, 1 pass)",
+            true,
+            true,
+            true,
+            0,
+            1,
+            Learned::No,
+        ),
+        (
+            "analytic + sibling cancellation, 2 passes",
+            true,
+            true,
+            true,
+            0,
             2,
             Learned::No,
         ),
@@ -243,6 +268,7 @@ fn main() -> anyhow::Result<()> {
             false,
             true,
             0,
+            0,
             Learned::Zocr,
         ));
     }
@@ -252,6 +278,7 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             true,
+            0,
             0,
             Learned::Fdd,
         ));
@@ -312,13 +339,14 @@ fn main() -> anyhow::Result<()> {
         "| row FTP per pattern (slscan::phase::ftp) | {:.4} | | | | |",
         ftp.mae()
     );
-    for (name, reference, xtalk, zero, refinements, learned) in variants {
+    for (name, reference, xtalk, zero, refinements, cancellations, learned) in variants {
         let config = DecoderConfig {
             demux: DemuxOptions {
                 crosstalk: xtalk.then_some(crosstalk),
                 zero_order_removal: zero,
                 reference_demodulation: reference,
                 refinements,
+                cancellations,
                 ..DemuxOptions::default()
             },
             samples: epipolar_samples,

@@ -465,30 +465,32 @@ fn a_water_edge_margin_in_air_or_negative_is_refused_before_capture() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `--demod-refinements` belongs to `--mode high-speed` and cannot join
-/// `--fdd-model` (which learnt the single pass): both refused before
-/// anything is made.
+/// `--demod-refinements` and `--sibling-cancellations` belong to `--mode
+/// high-speed` and cannot join `--fdd-model` (which learnt the single
+/// pass): each refused before anything is made.
 #[cfg(feature = "sim")]
 #[test]
-fn demodulation_refinements_outside_high_speed_or_with_fdd_net_are_refused() {
+fn demodulation_passes_outside_high_speed_or_with_fdd_net_are_refused() {
     let dir = tmp("refinements");
     let out = dir.join("out");
-    let scan = |extra: &[&str]| sim_scan(&[&["--demod-refinements", "1"], extra].concat(), &out);
-    fails_with(
-        &scan(&["--mode", "sequential"]),
-        "--demod-refinements is for --mode high-speed only",
-    );
     let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_fdd.onnx");
-    fails_with(
-        &scan(&[
-            "--mode",
-            "high-speed",
-            "--fdd-model",
-            shipped.to_str().unwrap(),
-        ]),
-        "cannot be used with",
-    );
-    assert!(!out.exists(), "a refused scan made its output folder");
+    for flag in ["--demod-refinements", "--sibling-cancellations"] {
+        let scan = |extra: &[&str]| sim_scan(&[&[flag, "1"], extra].concat(), &out);
+        fails_with(
+            &scan(&["--mode", "sequential"]),
+            &format!("{flag} is for --mode high-speed only"),
+        );
+        fails_with(
+            &scan(&[
+                "--mode",
+                "high-speed",
+                "--fdd-model",
+                shipped.to_str().unwrap(),
+            ]),
+            "cannot be used with",
+        );
+        assert!(!out.exists(), "a refused scan made its output folder");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

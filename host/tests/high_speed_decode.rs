@@ -268,25 +268,33 @@ fn a_zocr_net_that_does_not_fit_the_set_is_refused_at_load() {
 }
 
 /// FDD-Net learnt the single-pass demodulation's errors: a decoder that
-/// refines its demodulation refuses it, with the reason.
+/// refines its demodulation or cancels siblings refuses it, with the reason.
 #[test]
-fn an_fdd_net_is_refused_by_a_refining_decoder() {
+fn an_fdd_net_is_refused_by_a_refining_or_cancelling_decoder() {
     let set = PatternSet::seed001(DMD).unwrap();
     let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_fdd.onnx");
     let net = FddNet::load(&shipped, &set).unwrap();
     let head = high_speed_head(64, 48, DMD);
-    let decoder = |refinements| {
+    let decoder = |refinements, cancellations| {
         let mut config = DecoderConfig::default();
         config.demux.refinements = refinements;
+        config.demux.cancellations = cancellations;
         Decoder::new(set.clone(), &head, config).unwrap()
     };
-    assert!(decoder(0).with_fdd(net.clone()).is_ok());
-    let err = decoder(1).with_fdd(net).err().expect("refused");
-    assert!(
-        matches!(err, HighSpeedError::BadConfig { .. })
-            && err.to_string().contains("refines them 1 time(s)"),
-        "{err}"
-    );
+    assert!(decoder(0, 0).with_fdd(net.clone()).is_ok());
+    for (refinements, cancellations, why) in [
+        (1, 0, "refines them 1 time(s)"),
+        (0, 1, "cancels siblings 1 time(s)"),
+    ] {
+        let err = decoder(refinements, cancellations)
+            .with_fdd(net.clone())
+            .err()
+            .expect("refused");
+        assert!(
+            matches!(err, HighSpeedError::BadConfig { .. }) && err.to_string().contains(why),
+            "{err}"
+        );
+    }
 }
 
 #[test]

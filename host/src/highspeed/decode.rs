@@ -199,13 +199,25 @@ impl Decoder {
 
     /// The same decoder with FDD-Net correcting every pattern's
     /// demodulated phase before unwrapping. Refused after refined
-    /// demodulations: the network learnt the single pass's errors.
+    /// demodulations or sibling cancellation: the network learnt the single
+    /// pass's errors.
     pub fn with_fdd(mut self, net: FddNet) -> Result<Self, HighSpeedError> {
-        let refinements = self.config.demux.refinements;
+        let DemuxOptions {
+            refinements,
+            cancellations,
+            ..
+        } = self.config.demux;
         if refinements > 0 {
             return Err(HighSpeedError::BadConfig {
                 why: format!(
                     "FDD-Net corrects the single-pass demodulation's phases; this decoder refines them {refinements} time(s)"
+                ),
+            });
+        }
+        if cancellations > 0 {
+            return Err(HighSpeedError::BadConfig {
+                why: format!(
+                    "FDD-Net corrects the single-pass demodulation's phases; this decoder cancels siblings {cancellations} time(s) (set demux.cancellations to 0)"
                 ),
             });
         }

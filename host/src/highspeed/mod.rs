@@ -5,7 +5,8 @@
 //!
 //! - [`set`]: the pattern set (frequencies, LEDs, projection order, DMD frames);
 //! - [`demux`]: the analytic multi-carrier demultiplexer (crosstalk and zero-order
-//!   removal, carrier demodulation with windows sized from the carriers);
+//!   removal, carrier demodulation with windows sized from the carriers, then
+//!   spatial-frequency decomposition by cancelling each pattern's siblings);
 //! - [`zocr`]: ZOCR-Net, the seed's first network, in place of the
 //!   demultiplexer's analytic crosstalk and zero-order removal;
 //! - [`fdd`]: FDD-Net, the seed's third network in a compact residual form:
@@ -15,7 +16,8 @@
 //!   depth.
 //!
 //! The seed's second network (spatial-frequency decomposition) is not
-//! built: carrier demodulation by each pattern's reference phase does its job.
+//! built: the demultiplexer does its job by formula (carrier demodulation by
+//! each pattern's reference phase, then sibling cancellation).
 
 pub mod crosstalk;
 pub mod decode;

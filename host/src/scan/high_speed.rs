@@ -193,6 +193,9 @@ pub struct HighSpeedResult {
     /// Demodulations after the first, each by the last one's phase
     /// ([`crate::highspeed::DemuxOptions::refinements`]).
     pub demodulation_refinements: u32,
+    /// Passes of sibling cancellation after the first demodulation
+    /// ([`crate::highspeed::DemuxOptions::cancellations`]).
+    pub sibling_cancellations: u32,
 }
 
 /// Minimum points on a sphere for a fit at one instant.
@@ -345,6 +348,7 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
         zocr_model: decoder.zocr().map(|n| n.path().to_path_buf()),
         fdd_model: decoder.fdd().map(|n| n.path().to_path_buf()),
         demodulation_refinements: config.decoder.demux.refinements,
+        sibling_cancellations: config.decoder.demux.cancellations,
     })
 }
 

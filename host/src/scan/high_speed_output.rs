@@ -163,7 +163,8 @@ pub struct HighSpeedReport {
     /// Camera frames.
     pub frames: usize,
     /// The decoder: "analytic", or which of seed 001's networks joined the
-    /// analytic stages (ZOCR-Net first, FDD-Net third; the second is not built).
+    /// analytic stages (ZOCR-Net first, FDD-Net third; the second is done by
+    /// formula, see `sibling_cancellations`).
     pub decoder: &'static str,
     /// The first stage's network file, when ZOCR-Net ran.
     pub zocr_model: Option<String>,
@@ -172,6 +173,9 @@ pub struct HighSpeedReport {
     /// Demodulations after the first, each by the last one's phase (0: the
     /// single pass).
     pub demodulation_refinements: u32,
+    /// Passes of sibling cancellation (seed 001's second stage by formula;
+    /// 0: the single demodulation).
+    pub sibling_cancellations: u32,
     /// The measured channel <- LED crosstalk, row per camera channel.
     pub crosstalk: [[f64; 3]; 3],
     /// Seconds decoding each frame took.
@@ -242,6 +246,7 @@ pub fn report(scan: &HighSpeedResult) -> HighSpeedReport {
         zocr_model: scan.zocr_model.as_ref().map(|p| p.display().to_string()),
         fdd_model: scan.fdd_model.as_ref().map(|p| p.display().to_string()),
         demodulation_refinements: scan.demodulation_refinements,
+        sibling_cancellations: scan.sibling_cancellations,
         crosstalk: [0, 1, 2].map(|r| [0, 1, 2].map(|c| m[(r, c)])),
         decode_s: scan.frames.iter().map(|f| f.decode_s).collect(),
         calibration_is_true: scan.calibration_is_true,

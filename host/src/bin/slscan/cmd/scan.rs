@@ -169,6 +169,20 @@ pub struct Args {
         conflicts_with = "fdd_model"
     )]
     demod_refinements: u32,
+    /// --mode high-speed: passes of sibling cancellation after the first
+    /// demodulation (seed 001's second stage, spatial-frequency
+    /// decomposition, done by formula): each pattern demodulated again, with
+    /// a wider window, from its LED's fringes minus the seven other
+    /// directions' as the pass before found them: lower typical error,
+    /// heavier tails, a quarter more decode time (README, high-speed
+    /// section). Not with --fdd-model, which learnt the single pass's errors.
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 0,
+        conflicts_with = "fdd_model"
+    )]
+    sibling_cancellations: u32,
     /// Drive the simulated projectors through this DMD controller's USB HID
     /// driver and hil-sim's byte-level controller (--sim; default: patterns
     /// go straight to the simulated DMDs).
@@ -527,6 +541,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.demod_refinements == 0 || matches!(args.mode, ModeArg::HighSpeed),
         "--demod-refinements is for --mode high-speed only"
     );
+    anyhow::ensure!(
+        args.sibling_cancellations == 0 || matches!(args.mode, ModeArg::HighSpeed),
+        "--sibling-cancellations is for --mode high-speed only"
+    );
     let mode = match args.mode {
         ModeArg::Sequential => Mode::Sequential,
         ModeArg::Simultaneous => Mode::Simultaneous,
@@ -543,6 +561,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 zocr_model: args.zocr_model.as_deref(),
                 fdd_model: args.fdd_model.as_deref(),
                 demod_refinements: args.demod_refinements,
+                sibling_cancellations: args.sibling_cancellations,
             })
         }
         ModeArg::HighSpeed => return high_speed_hardware(&args),
@@ -611,6 +630,7 @@ fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
     let mut config = HighSpeedConfig::new(&format!("rig file {}", calibration_path.display()));
     config.frames = args.frames;
     config.decoder.demux.refinements = args.demod_refinements;
+    config.decoder.demux.cancellations = args.sibling_cancellations;
     let failed = || {
         format!(
             "high-speed scan into {} failed; nothing written",

@@ -32,6 +32,8 @@ pub struct Options<'a> {
     pub fdd_model: Option<&'a Path>,
     /// `--demod-refinements`: demodulations after the first.
     pub demod_refinements: u32,
+    /// `--sibling-cancellations`: passes of sibling cancellation.
+    pub sibling_cancellations: u32,
 }
 
 /// `--zocr-model`, loaded and checked against seed 001's set on a DMD of
@@ -85,6 +87,7 @@ fn scan_sim(options: &Options) -> anyhow::Result<HighSpeedReport> {
     config.projector_driver = options.projector_driver;
     config.conventional = options.conventional;
     config.scan.decoder.demux.refinements = options.demod_refinements;
+    config.scan.decoder.demux.cancellations = options.sibling_cancellations;
     let failed = || {
         format!(
             "high-speed scan into {} failed; nothing written",
@@ -114,7 +117,10 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
         report.instants.len(),
         report.pattern_rate_hz,
         report.decoder,
-        match report.demodulation_refinements {
+        match report.sibling_cancellations {
+            0 => String::new(),
+            n => format!(", {n} sibling cancellation pass(es)"),
+        } + &match report.demodulation_refinements {
             0 => String::new(),
             n => format!(", {n} demodulation refinement(s)"),
         }
