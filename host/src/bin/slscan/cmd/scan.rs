@@ -174,7 +174,7 @@ pub struct Args {
     /// decomposition, done by formula): each pattern demodulated again, with
     /// a wider window, from its LED's fringes minus the seven other
     /// directions' as the pass before found them: lower typical error,
-    /// heavier tails, a quarter more decode time (README, high-speed
+    /// heavier tails, 1.3-1.4x the decode time (README, high-speed
     /// section). Not with --fdd-model, which learnt the single pass's errors.
     #[arg(
         long,
