@@ -12,7 +12,10 @@
 //! (FDD-Net) correcting the analytic demodulation's phases.
 //!
 //! The analytic decoder is also run with its demodulation refined once and
-//! twice (`DemuxOptions::refinements`, the scan's `--demod-refinements`).
+//! twice (`DemuxOptions::refinements`, the scan's `--demod-refinements`), and
+//! with one and two passes of sibling cancellation
+//! (`DemuxOptions::cancellations`, `--sibling-cancellations`; with `--zocr`,
+//! also after ZOCR-Net).
 //!
 //! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--samples N] [--moving] [--zocr PATH] [--fdd PATH]`
 //! (`--samples`: points on each pixel's epipolar segment, the decoder's default unless given;
@@ -269,6 +272,15 @@ fn main() -> anyhow::Result<()> {
             true,
             0,
             0,
+            Learned::Zocr,
+        ));
+        variants.push((
+            "ZOCR-Net + sibling cancellation (learned stage 1, stage 2 by formula)",
+            true,
+            false,
+            true,
+            0,
+            1,
             Learned::Zocr,
         ));
     }
