@@ -58,7 +58,8 @@ pub struct DemuxOptions {
     /// its LED's fringes minus its seven siblings' fringes as the pass before
     /// found them (`B_k cos phi_k`), through a window widened across (the
     /// siblings it had to keep out are gone; three eighths of the way). Lower
-    /// typical error, heavier tails where the pass before was wrong.
+    /// typical error, heavier tails where the pass before was wrong. With
+    /// `refinements`, every cancellation pass refines its demodulation too.
     pub cancellations: u32,
 }
 
