@@ -22,12 +22,24 @@ fn scene(width: u32, height: u32) -> (Head, GroundTruth) {
     (head, truth)
 }
 
+/// The single demodulation (the default) and one pass of sibling
+/// cancellation: measured 0.0852 / 0.0735 rad, decoded 0.958 / 0.959,
+/// right 0.9926 / 0.9934, depth RMSE 1,690 / 1,393 um, median 110.5 /
+/// 43.8 um.
 #[test]
 fn each_instant_lands_on_the_traced_surface() {
+    for cancellations in [0, 1] {
+        each_instant_lands_on_the_traced_surface_with(cancellations);
+    }
+}
+
+fn each_instant_lands_on_the_traced_surface_with(cancellations: u32) {
     let (head, truth) = scene(320, 240);
     let set = PatternSet::seed001(DMD).unwrap();
     let planes = high_speed_exposure(&set, &truth, 0.002, 7);
-    let decoder = Decoder::new(set.clone(), &head, DecoderConfig::default()).unwrap();
+    let mut config = DecoderConfig::default();
+    config.demux.cancellations = cancellations;
+    let decoder = Decoder::new(set.clone(), &head, config).unwrap();
     let out = decoder
         .decode([&planes[0], &planes[1], &planes[2]])
         .unwrap();
@@ -67,7 +79,7 @@ fn each_instant_lands_on_the_traced_surface() {
     let median_um = abs_um[abs_um.len() / 2];
     let p95_um = abs_um[abs_um.len() * 95 / 100];
     println!(
-        "320x240 synth, two spheres + plane, noise 0.002: wrapped-phase MAE {mae:.4} rad, \
+        "320x240 synth, two spheres + plane, noise 0.002, {cancellations} sibling cancellation pass(es): wrapped-phase MAE {mae:.4} rad, \
          decoded {coverage:.3} of lit, unwrapped right {right_share:.4}, depth RMSE {rmse_um:.1} um, \
          median {median_um:.1} um, 95th percentile {p95_um:.1} um"
     );
