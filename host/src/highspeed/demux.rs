@@ -149,11 +149,13 @@ impl Demultiplexer {
             .iter()
             .map(|g| mean_carrier(&reference_dmd, width, height, g))
             .collect();
-        let windows = (0..carriers.len())
+        let windows: Vec<Window> = (0..carriers.len())
             .map(|m| window(m, &carriers, &colours, options.leak))
             .collect();
-        let wide_windows = (0..carriers.len())
-            .map(|m| cancelled_window(m, &carriers, &colours, options.leak))
+        let wide_windows = windows
+            .iter()
+            .enumerate()
+            .map(|(m, narrow)| cancelled_window(narrow, m, &carriers, &colours, options.leak))
             .collect();
         Ok(Self {
             fft: Fft2::new(width, height),
@@ -236,17 +238,13 @@ impl Demultiplexer {
     /// steps 1 and 2 were done (by formula or by ZOCR-Net).
     pub fn demodulate_all(&self, cleaned: ZeroOrderRemoved) -> Demultiplexed {
         let n = self.fft.size().0 * self.fft.size().1;
-        let (wrapped, modulation): (Vec<_>, Vec<_>) = (0..self.windows.len())
+        let (mut wrapped, modulation): (Vec<_>, Vec<_>) = (0..self.windows.len())
             .into_par_iter()
             .map_init(
                 || DemodScratch::new(n),
-                |scratch, m| {
-                    let window = (&self.windows[m], EXP_UNDERFLOW);
-                    self.demodulate(&cleaned.fringes[self.colours[m]], m, window, scratch)
-                },
+                |scratch, m| self.demodulate(&cleaned.fringes[self.colours[m]], m, scratch),
             )
             .unzip();
-        let mut wrapped = wrapped;
         for _ in 0..self.options.cancellations {
             self.cancel_siblings(&cleaned.fringes, &mut wrapped, &modulation);
         }
@@ -375,12 +373,12 @@ impl Demultiplexer {
         }
     }
 
-    /// Pattern `m` out of its LED's signal: (wrapped phase, modulation).
+    /// Pattern `m` out of its LED's signal through its own window (the first
+    /// pass): (wrapped phase, modulation).
     fn demodulate(
         &self,
         signal: &[f32],
         m: usize,
-        (win, floor): (&Window, f32),
         scratch: &mut DemodScratch,
     ) -> (Vec<f32>, Vec<f32>) {
         let (w, h) = self.fft.size();
@@ -389,7 +387,7 @@ impl Demultiplexer {
         self.demodulate_into(
             signal,
             m,
-            (win, floor),
+            (&self.windows[m], EXP_UNDERFLOW),
             scratch,
             &mut phase,
             Some(&mut modulation),
@@ -658,16 +656,21 @@ fn window(m: usize, carriers: &[[f32; 2]], colours: &[usize], leak: f64) -> Wind
 /// cancellation leaves of the siblings still leaks through a full width.
 const CANCELLED_WIDENING: f32 = 0.375;
 
-/// Pattern `m`'s window once its siblings are cancelled: along as before,
-/// across [`CANCELLED_WIDENING`] of the way to a window that keeps out only
-/// the zero order and its own conjugate.
-fn cancelled_window(m: usize, carriers: &[[f32; 2]], colours: &[usize], leak: f64) -> Window {
-    let narrow = window(m, carriers, colours, leak);
+/// Pattern `m`'s window once its siblings are cancelled: along as its
+/// `narrow` one, across [`CANCELLED_WIDENING`] of the way to a window that
+/// keeps out only the zero order and its own conjugate.
+fn cancelled_window(
+    narrow: &Window,
+    m: usize,
+    carriers: &[[f32; 2]],
+    colours: &[usize],
+    leak: f64,
+) -> Window {
     let alone = window(0, &carriers[m..=m], &colours[m..=m], leak);
     Window {
         sigma_across: narrow.sigma_across
             + CANCELLED_WIDENING * (alone.sigma_across - narrow.sigma_across),
-        ..narrow
+        ..*narrow
     }
 }
 
