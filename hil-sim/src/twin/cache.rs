@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::device::{Pinhole, Projector, Rig};
 use super::error::TwinError;
-use super::geometry::{Ray, V3};
+use super::geometry::{Frame, Ray, V3};
 use super::huge_pages::advised;
 use super::medium::Medium;
 use super::mesh::PACKET;
@@ -210,12 +210,13 @@ impl CameraGeometry {
         let (w, h) = (rays.width, rays.height);
         let camera = rays.camera;
         let mut g = CameraGeometry::empty(w, h, rig.projectors.len());
+        let frames = DeviceFrames::new(rig, camera);
         g.rows_mut()
             .into_par_iter()
             .zip(rays.rays.par_chunks(w as usize))
             .for_each(|(mut row, row_rays)| {
                 for (c, chunk) in row_rays.chunks(PACKET).enumerate() {
-                    pixels(scene, rig, camera, chunk, &mut row, c * PACKET);
+                    pixels(scene, rig, &frames, chunk, &mut row, c * PACKET);
                 }
             });
         let views = &g.projectors;
@@ -325,14 +326,35 @@ fn camera_ray(rig: &Rig, camera: usize, x: f64, y: f64) -> Option<Ray> {
     }
 }
 
+/// The poses of a camera and of every projector of its rig, as [`Frame`]s
+/// for the per-pixel transforms.
+struct DeviceFrames {
+    camera: Frame,
+    projectors: Vec<Frame>,
+}
+
+impl DeviceFrames {
+    fn new(rig: &Rig, camera: usize) -> DeviceFrames {
+        DeviceFrames {
+            camera: Frame::new(&rig.cameras[camera].model.world_from_device),
+            projectors: rig
+                .projectors
+                .iter()
+                .map(|p| Frame::new(&p.model.world_from_device))
+                .collect(),
+        }
+    }
+}
+
 /// Fills pixels `x0 .. x0 + rays.len()` (at most [`PACKET`]) of `row`: what
 /// each camera ray hits and how each projector lights it. Neighbouring
 /// pixels' rays, and their shadow rays toward one projector, are cast as one
 /// packet (see `mesh::packet`); every pixel gets what it would get alone.
+/// `frames`: the rig's device poses ([`DeviceFrames`]).
 fn pixels(
     scene: &PosedScene,
     rig: &Rig,
-    camera: usize,
+    frames: &DeviceFrames,
     rays: &[Option<Ray>],
     row: &mut RowOut,
     x0: usize,
@@ -356,14 +378,14 @@ fn pixels(
     for l in 0..n {
         match hits[l] {
             Some(hit) => {
-                let s = surface(scene, rig, camera, &cast[l], hit);
+                let s = surface(scene, rig, frames, &cast[l], hit);
                 s.write(row, lane_x[l]);
                 surfaces[l] = Some(s);
             }
             None => miss(row, lane_x[l], direct),
         }
     }
-    for (pi, pr) in rig.projectors.iter().enumerate() {
+    for (pi, (pr, frame)) in rig.projectors.iter().zip(&frames.projectors).enumerate() {
         // Lights known without a shadow test go straight in; the rest wait
         // for one packet of shadow rays.
         let mut waiting: [Option<(usize, ShadowTest)>; PACKET] = [None; PACKET];
@@ -371,7 +393,7 @@ fn pixels(
         let mut m = 0;
         for l in 0..n {
             let Some(s) = &surfaces[l] else { continue };
-            match toward(pr, &rig.medium, s) {
+            match toward(pr, frame, &rig.medium, s) {
                 Light::Known(state) => row.proj[pi].set(lane_x[l], state),
                 Light::ShadowTest(test) => {
                     (from[m], to[m]) = (test.start, test.aim);
@@ -421,24 +443,21 @@ struct Surface<'s> {
     ambient: [f32; 3],
 }
 
-/// The surface camera ray `ray` of `camera` meets at `hit`.
+/// The surface a camera ray `ray` meets at `hit` (`frames`: its rig's).
 fn surface<'s>(
     scene: &'s PosedScene,
     rig: &Rig,
-    camera: usize,
+    frames: &DeviceFrames,
     ray: &Ray,
     hit: Hit,
 ) -> Surface<'s> {
     let s = scene.scene();
     let direct = s.ambient_direct.map(|a| a as f32);
-    let cam_model = &rig.cameras[camera].model;
-    let p_cam = cam_model
-        .world_from_device
-        .inverse_transform_point(&Point3::from(hit.point_m));
+    let p_cam = frames.camera.point_to_local(&hit.point_m);
     let material = &s.objects[hit.object].material;
     let albedo = material.albedo.at(&hit.local_m);
     let (water_c, view_to) = match rig.medium {
-        Medium::Air => (0.0, cam_model.centre()),
+        Medium::Air => (0.0, frames.camera.origin()),
         Medium::Water(_) => (hit.t_m, ray.origin),
     };
     let v = (view_to - hit.point_m).normalize();
@@ -497,14 +516,12 @@ struct ShadowTest {
     water_p: f64,
 }
 
-/// Where projector `pr`'s light meets surface `s`, up to the shadow test.
-fn toward(pr: &Projector, medium: &Medium, s: &Surface) -> Light {
+/// Where projector `pr`'s light (`frame`: its pose) meets surface `s`, up
+/// to the shadow test.
+fn toward(pr: &Projector, frame: &Frame, medium: &Medium, s: &Surface) -> Light {
     let hit = &s.hit;
     let model = &pr.model;
-    let q = model
-        .world_from_device
-        .inverse_transform_point(&Point3::from(hit.point_m))
-        .coords;
+    let q = frame.point_to_local(&hit.point_m);
     // Where the light leaves the device: its centre, or its port crossing in water.
     let (aim_local, water_p) = match medium {
         Medium::Air => (Some(V3::zeros()), 0.0),
@@ -524,10 +541,7 @@ fn toward(pr: &Projector, medium: &Medium, s: &Surface) -> Light {
     if !model.contains(uv) {
         return Light::Known((uv32, [0.0; 3], Illum::OutsideDmd));
     }
-    let aim = model
-        .world_from_device
-        .transform_point(&Point3::from(aim_local))
-        .coords;
+    let aim = frame.point_to_world(&aim_local);
     let l = (aim - hit.point_m).normalize();
     let cos_i = hit.normal.dot(&l);
     if cos_i <= 0.0 || hit.normal.dot(&s.v) <= 0.0 {

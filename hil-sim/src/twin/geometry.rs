@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use super::mesh::{Mesh, PACKET};
-pub use super::ray::{LocalHit, Pose, Ray, V3};
+pub use super::ray::{Frame, LocalHit, Pose, Ray, V3};
 
 /// The geometric primitives a scene object can be.
 #[derive(Clone, Debug)]

@@ -1,7 +1,7 @@
 //! Rays, poses and surface hits: the vocabulary every shape (analytic in
 //! `geometry.rs`, triangle meshes in `mesh.rs`) and every device speaks.
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 
 /// 3-vector of metres (or a unit direction), f64.
 pub type V3 = Vector3<f64>;
@@ -36,6 +36,52 @@ impl Ray {
             .coords;
         let d = pose.inverse_transform_vector(&self.dir);
         Ray { origin: o, dir: d }
+    }
+}
+
+/// A [`Pose`] as its rotation matrix, stored transposed, and translation:
+/// for the per-pixel transforms, where a matrix product costs less than a
+/// quaternion rotation (the twin's new pose took 0.9x the time with it).
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    /// R^T of the pose's rotation R (world -> local).
+    rt: Matrix3<f64>,
+    /// The pose's translation.
+    t: V3,
+}
+
+impl Frame {
+    /// The frame of `pose` (`world_from_local`).
+    pub fn new(pose: &Pose) -> Frame {
+        Frame {
+            rt: pose.rotation.to_rotation_matrix().matrix().transpose(),
+            t: pose.translation.vector,
+        }
+    }
+
+    /// The local frame's origin in the world.
+    pub fn origin(&self) -> V3 {
+        self.t
+    }
+
+    /// A world point in the local frame.
+    pub fn point_to_local(&self, p: &V3) -> V3 {
+        self.rt * (p - self.t)
+    }
+
+    /// A world direction in the local frame.
+    pub fn vector_to_local(&self, v: &V3) -> V3 {
+        self.rt * v
+    }
+
+    /// A local point in the world.
+    pub fn point_to_world(&self, p: &V3) -> V3 {
+        self.rt.tr_mul(p) + self.t
+    }
+
+    /// A local direction in the world.
+    pub fn vector_to_world(&self, v: &V3) -> V3 {
+        self.rt.tr_mul(v)
     }
 }
 

@@ -1,10 +1,10 @@
 //! Scenes: objects (shape + material + pose + motion) and the ambient light.
 
-use nalgebra::{Matrix3, Point3, Translation3, Unit, UnitQuaternion};
+use nalgebra::{Point3, Translation3, Unit, UnitQuaternion};
 use std::sync::Arc;
 
 use super::error::{non_negative, positive, TwinError};
-use super::geometry::{LocalHit, Pose, Ray, Shape, V3};
+use super::geometry::{Frame, LocalHit, Pose, Ray, Shape, V3};
 use super::mesh::PACKET;
 
 /// An RGB texture mapped onto the local x-y plane of its object.
@@ -266,18 +266,17 @@ pub struct Scene {
 #[derive(Clone, Debug)]
 pub struct PosedScene<'a> {
     scene: &'a Scene,
-    poses: Vec<Pose>,
-    /// Per object (R^T, t) of its pose: a matrix product is cheaper than a
-    /// quaternion rotation, and every ray is moved into every object's frame.
-    local_from_world: Vec<(Matrix3<f64>, V3)>,
+    /// Per object, its pose as a [`Frame`]: every ray is moved into every
+    /// object's frame, and every hit back.
+    frames: Vec<Frame>,
 }
 
 impl PosedScene<'_> {
     fn ray_to_local(&self, i: usize, ray: &Ray) -> Ray {
-        let (rt, t) = &self.local_from_world[i];
+        let frame = &self.frames[i];
         Ray {
-            origin: rt * (ray.origin - t),
-            dir: rt * ray.dir,
+            origin: frame.point_to_local(&ray.origin),
+            dir: frame.vector_to_local(&ray.dir),
         }
     }
 }
@@ -391,20 +390,14 @@ impl Scene {
 
     /// The scene frozen at time `t_s`.
     pub fn at(&self, t_s: f64) -> PosedScene<'_> {
-        let poses: Vec<Pose> = self.objects.iter().map(|o| o.pose_at(t_s)).collect();
-        let local_from_world = poses
+        let frames = self
+            .objects
             .iter()
-            .map(|p| {
-                (
-                    p.rotation.to_rotation_matrix().matrix().transpose(),
-                    p.translation.vector,
-                )
-            })
+            .map(|o| Frame::new(&o.pose_at(t_s)))
             .collect();
         PosedScene {
             scene: self,
-            poses,
-            local_from_world,
+            frames,
         }
     }
 }
@@ -466,13 +459,13 @@ impl PosedScene<'_> {
 
     /// Object `i`'s local hit `h` of the local ray `local`, in the world.
     fn world_hit(&self, i: usize, h: LocalHit, local: &Ray) -> Hit {
-        let pose = &self.poses[i];
+        let frame = &self.frames[i];
         let local_m = local.at(h.t_m);
         Hit {
             object: i,
             t_m: h.t_m,
-            point_m: pose.transform_point(&Point3::from(local_m)).coords,
-            normal: pose.rotation * h.normal,
+            point_m: frame.point_to_world(&local_m),
+            normal: frame.vector_to_world(&h.normal),
             local_m,
         }
     }
