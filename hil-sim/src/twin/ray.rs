@@ -65,23 +65,40 @@ impl Frame {
     }
 
     /// A world point in the local frame.
+    #[inline(always)]
     pub fn point_to_local(&self, p: &V3) -> V3 {
-        self.rt * (p - self.t)
+        self.vector_to_local(&(p - self.t))
     }
 
     /// A world direction in the local frame.
+    #[inline(always)]
     pub fn vector_to_local(&self, v: &V3) -> V3 {
-        self.rt * v
+        let m = &self.rt;
+        // Row by row, in nalgebra's order of a matrix-vector product (the
+        // same bits): written out, the lanes stay in registers instead of
+        // passing through stack temporaries.
+        V3::new(
+            m[(0, 0)] * v.x + m[(0, 1)] * v.y + m[(0, 2)] * v.z,
+            m[(1, 0)] * v.x + m[(1, 1)] * v.y + m[(1, 2)] * v.z,
+            m[(2, 0)] * v.x + m[(2, 1)] * v.y + m[(2, 2)] * v.z,
+        )
     }
 
     /// A local point in the world.
+    #[inline(always)]
     pub fn point_to_world(&self, p: &V3) -> V3 {
-        self.rt.tr_mul(p) + self.t
+        self.vector_to_world(p) + self.t
     }
 
     /// A local direction in the world.
+    #[inline(always)]
     pub fn vector_to_world(&self, v: &V3) -> V3 {
-        self.rt.tr_mul(v)
+        let m = &self.rt;
+        V3::new(
+            m[(0, 0)] * v.x + m[(1, 0)] * v.y + m[(2, 0)] * v.z,
+            m[(0, 1)] * v.x + m[(1, 1)] * v.y + m[(2, 1)] * v.z,
+            m[(0, 2)] * v.x + m[(1, 2)] * v.y + m[(2, 2)] * v.z,
+        )
     }
 }
 
