@@ -3,8 +3,10 @@
 //! demultiplexer (crosstalk and zero-order removal, 24 demodulations, 3 + 48
 //! 2-D FFTs) and the per-pixel unwrapping and depth, at 640x480 and 1280x1024,
 //! beside seed 001's 90 ms on an RTX 4090; each size with the single
-//! demodulation (the default) and with one pass of sibling cancellation
-//! (`--sibling-cancellations 1`, 24 demodulations more).
+//! demodulation (the default), with one pass of sibling cancellation
+//! (`--sibling-cancellations 1`, 24 demodulations more) and with one
+//! consensus pass (`--consensus-passes 1`: 24 demodulations and the
+//! unwrapping and depth again).
 //!
 //! Then the first stage alone, analytic (crosstalk unmixing, Gaussian low
 //! band) beside ZOCR-Net on tract (`models/highspeed_zocr.onnx`), whose time
@@ -38,11 +40,11 @@ fn main() {
         "{} threads, median of {runs} runs; seed 001: 90 ms per image on an RTX 4090 (networks); goal here 1 s",
         rayon::current_num_threads()
     );
-    println!("| image | sibling cancellation passes | set-up | epipolar samples | demultiplex (24 fringes) | unwrap + depth | whole decode | decoded pixels (of lit) |");
-    println!("|---|---|---|---|---|---|---|---|");
-    for ((w, h), cancellations) in [(640u32, 480u32), (1280, 1024)]
+    println!("| image | sibling cancellation passes | consensus passes | set-up | epipolar samples | demultiplex (24 fringes) | unwrap + depth (and the consensus pass) | whole decode | decoded pixels (of lit) |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for ((w, h), (cancellations, consensus)) in [(640u32, 480u32), (1280, 1024)]
         .into_iter()
-        .flat_map(|size| [(size, 0), (size, 1)])
+        .flat_map(|size| [(size, (0, 0)), (size, (1, 0)), (size, (0, 1))])
     {
         let set = PatternSet::seed001(DMD).expect("seed set");
         let head = high_speed_head(w, h, DMD);
@@ -50,6 +52,7 @@ fn main() {
         let planes = high_speed_exposure(&set, &truth, 0.002, 3);
         let mut config = DecoderConfig::default();
         config.demux.cancellations = cancellations;
+        config.consensus_passes = consensus;
         let t = Instant::now();
         let decoder = Decoder::new(set, &head, config).expect("decoder");
         let setup = t.elapsed();
@@ -77,7 +80,7 @@ fn main() {
         }
         let (demux, whole) = (median(demux), median(whole));
         println!(
-            "| {w}x{h} | {cancellations} | {:.0} ms | {} | {:.0} ms | {:.0} ms | **{:.0} ms** | {decoded} (instant 0) |",
+            "| {w}x{h} | {cancellations} | {consensus} | {:.0} ms | {} | {:.0} ms | {:.0} ms | **{:.0} ms** | {decoded} (instant 0) |",
             setup.as_secs_f64() * 1e3,
             decoder.samples(),
             demux.as_secs_f64() * 1e3,

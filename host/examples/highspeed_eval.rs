@@ -12,10 +12,12 @@
 //! (FDD-Net) correcting the analytic demodulation's phases.
 //!
 //! The analytic decoder is also run with its demodulation refined once and
-//! twice (`DemuxOptions::refinements`, the scan's `--demod-refinements`), and
+//! twice (`DemuxOptions::refinements`, the scan's `--demod-refinements`),
 //! with one and two passes of sibling cancellation
 //! (`DemuxOptions::cancellations`, `--sibling-cancellations`; with `--zocr`,
-//! also after ZOCR-Net).
+//! also after ZOCR-Net), and decoded again on carriers predicted from the
+//! depth its patterns agree on (`DecoderConfig::consensus_passes`,
+//! `--consensus-passes`), alone and after sibling cancellation.
 //!
 //! `cargo run --release -p slscan --example highspeed_eval -- [--count N] [--seed S] [--samples N] [--moving] [--zocr PATH] [--fdd PATH]`
 //! (`--samples`: points on each pixel's epipolar segment, the decoder's default unless given;
@@ -180,13 +182,14 @@ fn main() -> anyhow::Result<()> {
     let view = |l: usize| [&flats0[l][0][..], &flats0[l][1][..], &flats0[l][2][..]];
     let crosstalk = crosstalk_from_flats([view(0), view(1), view(2)], 0.995)?;
     println!("crosstalk measured from scene 0's three LED flats (channel <- LED): {crosstalk:.3}");
-    // (name, reference carrier, crosstalk, zero-order removal, refinements, cancellations, learned stage)
+    // (name, reference carrier, crosstalk, zero-order removal, refinements, cancellations, consensus passes, learned stage)
     let mut variants = vec![
         (
             "linear carrier (FTP-like), raw channels",
             false,
             false,
             false,
+            0,
             0,
             0,
             Learned::No,
@@ -198,6 +201,7 @@ fn main() -> anyhow::Result<()> {
             true,
             0,
             0,
+            0,
             Learned::No,
         ),
         (
@@ -205,6 +209,7 @@ fn main() -> anyhow::Result<()> {
             true,
             false,
             true,
+            0,
             0,
             0,
             Learned::No,
@@ -216,6 +221,7 @@ fn main() -> anyhow::Result<()> {
             false,
             0,
             0,
+            0,
             Learned::No,
         ),
         (
@@ -223,6 +229,7 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             true,
+            0,
             0,
             0,
             Learned::No,
@@ -234,6 +241,7 @@ fn main() -> anyhow::Result<()> {
             true,
             1,
             0,
+            0,
             Learned::No,
         ),
         (
@@ -242,6 +250,7 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             2,
+            0,
             0,
             Learned::No,
         ),
@@ -252,6 +261,37 @@ fn main() -> anyhow::Result<()> {
             true,
             0,
             1,
+            0,
+            Learned::No,
+        ),
+        (
+            "analytic + consensus re-demodulation (1 pass)",
+            true,
+            true,
+            true,
+            0,
+            0,
+            1,
+            Learned::No,
+        ),
+        (
+            "analytic + consensus re-demodulation (2 passes)",
+            true,
+            true,
+            true,
+            0,
+            0,
+            2,
+            Learned::No,
+        ),
+        (
+            "analytic + sibling cancellation + consensus re-demodulation (1 pass each)",
+            true,
+            true,
+            true,
+            0,
+            1,
+            1,
             Learned::No,
         ),
         (
@@ -261,6 +301,7 @@ fn main() -> anyhow::Result<()> {
             true,
             0,
             2,
+            0,
             Learned::No,
         ),
     ];
@@ -272,6 +313,7 @@ fn main() -> anyhow::Result<()> {
             true,
             0,
             0,
+            0,
             Learned::Zocr,
         ));
         variants.push((
@@ -281,6 +323,7 @@ fn main() -> anyhow::Result<()> {
             true,
             0,
             1,
+            0,
             Learned::Zocr,
         ));
     }
@@ -290,6 +333,7 @@ fn main() -> anyhow::Result<()> {
             true,
             true,
             true,
+            0,
             0,
             0,
             Learned::Fdd,
@@ -351,7 +395,7 @@ fn main() -> anyhow::Result<()> {
         "| row FTP per pattern (slscan::phase::ftp) | {:.4} | | | | |",
         ftp.mae()
     );
-    for (name, reference, xtalk, zero, refinements, cancellations, learned) in variants {
+    for (name, reference, xtalk, zero, refinements, cancellations, consensus, learned) in variants {
         let config = DecoderConfig {
             demux: DemuxOptions {
                 crosstalk: xtalk.then_some(crosstalk),
@@ -361,6 +405,7 @@ fn main() -> anyhow::Result<()> {
                 cancellations,
                 ..DemuxOptions::default()
             },
+            consensus_passes: consensus,
             samples: epipolar_samples,
             ..DecoderConfig::default()
         };

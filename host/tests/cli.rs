@@ -465,8 +465,8 @@ fn a_water_edge_margin_in_air_or_negative_is_refused_before_capture() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `--demod-refinements` and `--sibling-cancellations` belong to `--mode
-/// high-speed` and cannot join `--fdd-model` (which learnt the single
+/// `--demod-refinements`, `--sibling-cancellations` and
+/// `--consensus-passes` belong to `--mode high-speed` and cannot join `--fdd-model` (which learnt the single
 /// pass): each refused before anything is made.
 #[cfg(feature = "sim")]
 #[test]
@@ -474,7 +474,11 @@ fn demodulation_passes_outside_high_speed_or_with_fdd_net_are_refused() {
     let dir = tmp("refinements");
     let out = dir.join("out");
     let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/highspeed_fdd.onnx");
-    for flag in ["--demod-refinements", "--sibling-cancellations"] {
+    for flag in [
+        "--demod-refinements",
+        "--sibling-cancellations",
+        "--consensus-passes",
+    ] {
         let scan = |extra: &[&str]| sim_scan(&[&[flag, "1"], extra].concat(), &out);
         fails_with(
             &scan(&["--mode", "sequential"]),

@@ -258,6 +258,34 @@ fn sibling_cancellation_brings_the_spheres_nearer_the_truth() {
     );
 }
 
+/// A consensus pass (opt-in: every pattern demodulated again against the
+/// phase it has at the depth the first pass's 24 depths agree on) against
+/// the single pass: the spheres' interiors land much nearer the truth, and
+/// coverage grows. Measured at 640x480, one frame: object-interior median
+/// error 0.75 mm against 1.41 mm, coverage 0.879 and 0.816.
+#[test]
+fn a_consensus_pass_brings_the_spheres_much_nearer_the_truth() {
+    let passes =
+        |n: u32| interior_median_and_coverage(|config, _| config.scan.decoder.consensus_passes = n);
+    let (single_median, single_coverage) = passes(0);
+    let (consensus_median, consensus_coverage) = passes(1);
+    println!(
+        "interior median of medians: single pass {:.0} um, consensus {:.0} um; coverage {:.3} / {:.3}",
+        single_median * 1e6,
+        consensus_median * 1e6,
+        single_coverage,
+        consensus_coverage
+    );
+    assert!(
+        consensus_median < 0.75 * single_median,
+        "consensus {consensus_median} m against single pass {single_median} m"
+    );
+    assert!(
+        consensus_coverage > single_coverage,
+        "coverage {consensus_coverage} against {single_coverage}"
+    );
+}
+
 /// The shipped FDD-Net (seed 001's third network, compact, trained on
 /// 640x480 twin exposures of random scenes, never on `spheres`) correcting
 /// the analytic demodulation's phases brings the spheres' interiors nearer

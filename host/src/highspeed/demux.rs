@@ -194,7 +194,7 @@ impl Demultiplexer {
     pub fn carrier(&self, m: usize) -> Vec<f32> {
         let (w, h) = self.fft.size();
         let mut out = vec![0.0; w * h];
-        self.carrier_phase(m, &mut out);
+        self.carrier_phase(m, None, &mut out);
         out
     }
 
@@ -286,9 +286,34 @@ impl Demultiplexer {
                         *a = f - all + fringe_at(p, b);
                     }
                     let window = (&self.wide_windows[m], CANCELLED_FLOOR);
-                    self.demodulate_into(alone, m, window, scratch, phase, None);
+                    self.carrier_phase(m, None, &mut scratch.carrier);
+                    self.demodulate_into(alone, window, scratch, phase, None);
                 },
             );
+    }
+
+    /// Every pattern demodulated again out of its LED's `fringes` (steps 1
+    /// and 2's), on the carrier it has where pixel `i` sees DMD position
+    /// `at[i]` (the reference plane's where `at[i]` is NaN) and through its
+    /// first window; the new phases replace `wrapped`'s. With `at` from a
+    /// depth all patterns agree on, what the window filters is only each
+    /// pattern's phase minus that prediction, so a small curved surface is
+    /// no longer flattened towards the reference plane.
+    pub fn demodulate_at(
+        &self,
+        fringes: &[Vec<f32>; 3],
+        at: &[[f64; 2]],
+        wrapped: &mut [Vec<f32>],
+    ) {
+        let n = self.fft.size().0 * self.fft.size().1;
+        wrapped.par_iter_mut().enumerate().for_each_init(
+            || DemodScratch::new(n),
+            |scratch, (m, phase)| {
+                self.carrier_phase(m, Some(at), &mut scratch.carrier);
+                let window = (&self.windows[m], EXP_UNDERFLOW);
+                self.demodulate_into(&fringes[self.colours[m]], window, scratch, phase, None);
+            },
+        );
     }
 
     /// Per LED, the sum of its patterns' fringes `B_m cos phi_m` as
@@ -384,9 +409,9 @@ impl Demultiplexer {
         let (w, h) = self.fft.size();
         let mut phase = filled_vec(w * h, 0.0);
         let mut modulation = filled_vec(w * h, 0.0);
+        self.carrier_phase(m, None, &mut scratch.carrier);
         self.demodulate_into(
             signal,
-            m,
             (&self.windows[m], EXP_UNDERFLOW),
             scratch,
             &mut phase,
@@ -395,12 +420,12 @@ impl Demultiplexer {
         (phase, modulation)
     }
 
-    /// Pattern `m` out of its LED's signal into `phase` (wrapped) and, when
-    /// given, `modulation`.
+    /// A pattern out of its LED's signal, on the carrier in
+    /// `scratch.carrier` ([`Self::carrier_phase`]) and through `win`, into
+    /// `phase` (wrapped) and, when given, `modulation`.
     fn demodulate_into(
         &self,
         signal: &[f32],
-        m: usize,
         (win, floor): (&Window, f32),
         scratch: &mut DemodScratch,
         phase: &mut [f32],
@@ -411,7 +436,6 @@ impl Demultiplexer {
             image,
             spectrum,
         } = scratch;
-        self.carrier_phase(m, carrier);
         simd_run!(self.simd, shift_to_baseband(signal, carrier, image));
         self.low_pass(win, floor, image, spectrum);
         match modulation {
@@ -459,8 +483,10 @@ impl Demultiplexer {
     }
 
     /// Pattern `m`'s carrier phase at every pixel into `out` (radians in
-    /// [0, 2 pi); NaN where the reference is unknown).
-    fn carrier_phase(&self, m: usize, out: &mut [f32]) {
+    /// [0, 2 pi); NaN where the reference is unknown): the phase it has where
+    /// the pixel sees DMD position `at[i]`, where given and known, else the
+    /// phase on the reference plane (or its linear carrier).
+    fn carrier_phase(&self, m: usize, at: Option<&[[f64; 2]]>, out: &mut [f32]) {
         let g = self.frequencies[m];
         let w = self.fft.size().0;
         if self.options.reference_demodulation {
@@ -476,6 +502,13 @@ impl Demultiplexer {
                     f64::from(win.carrier[0]) * (i % w) as f64
                         + f64::from(win.carrier[1]) * (i / w) as f64,
                 );
+            }
+        }
+        if let Some(at) = at {
+            for (o, p) in out.iter_mut().zip(at) {
+                if p[0].is_finite() && p[1].is_finite() {
+                    *o = cycles_to_radians(g[0] * p[0] + g[1] * p[1]);
+                }
             }
         }
     }

@@ -19,6 +19,7 @@
 //! built: the demultiplexer does its job by formula (carrier demodulation by
 //! each pattern's reference phase, then sibling cancellation).
 
+mod consensus;
 pub mod crosstalk;
 pub mod decode;
 pub mod demux;

@@ -196,6 +196,9 @@ pub struct HighSpeedResult {
     /// Passes of sibling cancellation after the first demodulation
     /// ([`crate::highspeed::DemuxOptions::cancellations`]).
     pub sibling_cancellations: u32,
+    /// Decodes after the first on carriers predicted from the last
+    /// ([`crate::highspeed::DecoderConfig::consensus_passes`]).
+    pub consensus_passes: u32,
 }
 
 /// Minimum points on a sphere for a fit at one instant.
@@ -349,6 +352,7 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
         fdd_model: decoder.fdd().map(|n| n.path().to_path_buf()),
         demodulation_refinements: config.decoder.demux.refinements,
         sibling_cancellations: config.decoder.demux.cancellations,
+        consensus_passes: config.decoder.consensus_passes,
     })
 }
 

@@ -176,6 +176,9 @@ pub struct HighSpeedReport {
     /// Passes of sibling cancellation (seed 001's second stage by formula;
     /// 0: the single demodulation).
     pub sibling_cancellations: u32,
+    /// Decodes after the first, each on carriers predicted from the depth
+    /// the last one's patterns agree on (0: none).
+    pub consensus_passes: u32,
     /// The measured channel <- LED crosstalk, row per camera channel.
     pub crosstalk: [[f64; 3]; 3],
     /// Seconds decoding each frame took.
@@ -247,6 +250,7 @@ pub fn report(scan: &HighSpeedResult) -> HighSpeedReport {
         fdd_model: scan.fdd_model.as_ref().map(|p| p.display().to_string()),
         demodulation_refinements: scan.demodulation_refinements,
         sibling_cancellations: scan.sibling_cancellations,
+        consensus_passes: scan.consensus_passes,
         crosstalk: [0, 1, 2].map(|r| [0, 1, 2].map(|c| m[(r, c)])),
         decode_s: scan.frames.iter().map(|f| f.decode_s).collect(),
         calibration_is_true: scan.calibration_is_true,

@@ -34,6 +34,8 @@ pub struct Options<'a> {
     pub demod_refinements: u32,
     /// `--sibling-cancellations`: passes of sibling cancellation.
     pub sibling_cancellations: u32,
+    /// `--consensus-passes`: decodes on carriers predicted from the last.
+    pub consensus_passes: u32,
 }
 
 /// `--zocr-model`, loaded and checked against seed 001's set on a DMD of
@@ -88,6 +90,7 @@ fn scan_sim(options: &Options) -> anyhow::Result<HighSpeedReport> {
     config.conventional = options.conventional;
     config.scan.decoder.demux.refinements = options.demod_refinements;
     config.scan.decoder.demux.cancellations = options.sibling_cancellations;
+    config.scan.decoder.consensus_passes = options.consensus_passes;
     let failed = || {
         format!(
             "high-speed scan into {} failed; nothing written",
@@ -123,6 +126,9 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
         } + &match report.demodulation_refinements {
             0 => String::new(),
             n => format!(", {n} demodulation refinement(s)"),
+        } + &match report.consensus_passes {
+            0 => String::new(),
+            n => format!(", {n} consensus pass(es)"),
         }
     );
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
