@@ -53,8 +53,9 @@ pub struct DecoderConfig {
     pub demux: DemuxOptions,
     /// Decodes after the first, each on carriers predicted from the pass
     /// before: every pattern demodulated again against the phase it has at
-    /// the depth the pass's 24 depths agree on (their median per pixel), then
-    /// unwrapped again ([`Demultiplexer::demodulate_at`]).
+    /// the depth the pass's 24 depths agree on (per pixel, the mean of those
+    /// within 2 % of their median, holes filled smoothly),
+    /// then unwrapped again ([`Demultiplexer::demodulate_at`]).
     pub consensus_passes: u32,
     /// Which build of the per-pixel unwrapping runs (both give the same bits;
     /// the AVX2 one is faster where the CPU has it).
