@@ -334,9 +334,9 @@ impl Decoder {
             fringes.wrapped =
                 net.correct(&self.demux, &self.set, &fringes, self.width, self.height)?;
         }
+        let p = self.set.patterns().len();
         let mut maps = self.unwrap_all(&saturated_px, &fringes);
         if let Some(led_fringes) = led_fringes {
-            let p = self.set.patterns().len();
             for _ in 0..self.config.consensus_passes {
                 let at = self.consensus_dmd(&maps[p..]);
                 self.demux
@@ -344,7 +344,6 @@ impl Decoder {
                 maps = self.unwrap_all(&saturated_px, &fringes);
             }
         }
-        let p = self.set.patterns().len();
         let instants = self
             .set
             .patterns()
