@@ -93,6 +93,66 @@ fn moved_pixels(s: &HighSpeedSample) -> Vec<bool> {
         .collect()
 }
 
+/// Per pixel, the city-block distance (pixels, capped at 255) to the nearest
+/// depth edge of the middle instant's truth: a pixel next to one whose depth
+/// differs by more than 1 %, or next to an unlit one, or at the image border
+/// of a lit region. Two chamfer sweeps.
+fn edge_distance(depth_m: &[f32], width: usize, height: usize) -> Vec<u8> {
+    let z = |x: usize, y: usize| depth_m[y * width + x];
+    let mut d: Vec<u8> = (0..width * height)
+        .map(|i| {
+            let (x, y) = (i % width, i / width);
+            let here = z(x, y);
+            let neighbours = [
+                (x > 0).then(|| z(x - 1, y)),
+                (x + 1 < width).then(|| z(x + 1, y)),
+                (y > 0).then(|| z(x, y - 1)),
+                (y + 1 < height).then(|| z(x, y + 1)),
+            ];
+            let edge = neighbours
+                .iter()
+                .flatten()
+                .any(|&n| here.is_finite() != n.is_finite() || (n - here).abs() > 0.01 * here);
+            if edge {
+                0
+            } else {
+                u8::MAX
+            }
+        })
+        .collect();
+    for y in 0..height {
+        for x in 0..width {
+            let i = y * width + x;
+            if x > 0 {
+                d[i] = d[i].min(d[i - 1].saturating_add(1));
+            }
+            if y > 0 {
+                d[i] = d[i].min(d[i - width].saturating_add(1));
+            }
+        }
+    }
+    for y in (0..height).rev() {
+        for x in (0..width).rev() {
+            let i = y * width + x;
+            if x + 1 < width {
+                d[i] = d[i].min(d[i + 1].saturating_add(1));
+            }
+            if y + 1 < height {
+                d[i] = d[i].min(d[i + width].saturating_add(1));
+            }
+        }
+    }
+    d
+}
+
+/// Distance bands to the nearest depth edge ([`edge_distance`]), pixels.
+const EDGE_BANDS: [(u8, u8, &str); 4] = [
+    (0, 2, "0-2 px"),
+    (3, 6, "3-6 px"),
+    (7, 15, "7-15 px"),
+    (16, u8::MAX, "16+ px"),
+];
+
 fn wrap(a: f32) -> f32 {
     let t = std::f32::consts::TAU;
     a - t * (a / t).round()
@@ -389,6 +449,17 @@ fn main() -> anyhow::Result<()> {
             }
         }
     }
+    let edges: Vec<Vec<u8>> = samples
+        .iter()
+        .map(|s| {
+            edge_distance(
+                &s.depth_m[s.depth_m.len() / 2],
+                detail.camera.0 as usize,
+                detail.camera.1 as usize,
+            )
+        })
+        .collect();
+    let mut by_edge_rows = Vec::new();
     println!("\n| decoder | wrapped-phase MAE, rad | MAE where the surface moved | decoded, of lit | unwrapped right, of decoded | depth RMSE of those, um |");
     println!("|---|---|---|---|---|---|");
     println!(
@@ -416,13 +487,19 @@ fn main() -> anyhow::Result<()> {
             Learned::Fdd => decoder = decoder.with_fdd(fdd.clone().context("no --fdd")?)?,
         }
         let (mut tally, mut tally_moved) = (Tally::default(), Tally::default());
+        let mut by_edge: [Tally; EDGE_BANDS.len()] = Default::default();
         let (mut decoded, mut right, mut lit) = (0usize, 0usize, 0usize);
         let mut depth_sq = 0.0f64;
-        for (s, moved) in samples.iter().zip(&moved) {
+        for ((s, moved), edge) in samples.iter().zip(&moved).zip(&edges) {
             let out = decoder.decode([&s.channels[0], &s.channels[1], &s.channels[2]])?;
             for (m, instant) in out.instants.iter().enumerate() {
                 tally.add(&out.fringes.wrapped[m], &s.phase[m]);
                 tally_moved.add_where(&out.fringes.wrapped[m], &s.phase[m], |i| moved[i]);
+                for (band, &(lo, hi, _)) in by_edge.iter_mut().zip(&EDGE_BANDS) {
+                    band.add_where(&out.fringes.wrapped[m], &s.phase[m], |i| {
+                        (lo..=hi).contains(&edge[i])
+                    });
+                }
                 for i in 0..s.depth_m[m].len() {
                     let t = s.phase[m][i];
                     if !t.is_finite() {
@@ -452,6 +529,29 @@ fn main() -> anyhow::Result<()> {
             right as f64 / decoded.max(1) as f64,
             1e6 * (depth_sq / right.max(1) as f64).sqrt()
         );
+        by_edge_rows.push((name, by_edge));
+    }
+    // Where the error sits: near the scenes' depth edges (object outlines,
+    // shadows) or on smooth surface.
+    let share: Vec<String> = (0..EDGE_BANDS.len())
+        .map(|b| {
+            format!(
+                "{:.1} %",
+                100.0 * by_edge_rows[0].1[b].n as f64
+                    / by_edge_rows[0].1.iter().map(|t| t.n).sum::<usize>().max(1) as f64
+            )
+        })
+        .collect();
+    println!(
+        "\nWrapped-phase MAE (rad) by distance to the nearest depth edge of the middle instant's truth (share of the first row's measured pixels: {})",
+        share.join(", ")
+    );
+    let header: Vec<&str> = EDGE_BANDS.iter().map(|b| b.2).collect();
+    println!("\n| decoder | {} |", header.join(" | "));
+    println!("|---|{}", "---|".repeat(EDGE_BANDS.len()));
+    for (name, by_edge) in &by_edge_rows {
+        let cells: Vec<String> = by_edge.iter().map(|t| format!("{:.4}", t.mae())).collect();
+        println!("| {name} | {} |", cells.join(" | "));
     }
     Ok(())
 }
