@@ -330,20 +330,18 @@ impl Decoder {
         };
         let led_fringes = (self.config.consensus_passes > 0).then(|| cleaned.fringes.clone());
         let mut fringes = self.demux.demodulate_all(cleaned);
-        // The modulation of each phase held, for the consensus passes to beat;
-        // the decoder's gate stays the first pass's.
-        let mut held = led_fringes.as_ref().map(|_| fringes.modulation.clone());
         if let Some(net) = &self.fdd {
             fringes.wrapped =
                 net.correct(&self.demux, &self.set, &fringes, self.width, self.height)?;
         }
         let p = self.set.patterns().len();
         let mut maps = self.unwrap_all(&saturated_px, &fringes);
-        if let (Some(led_fringes), Some(held)) = (led_fringes, held.as_mut()) {
+        if let Some(led_fringes) = led_fringes {
             for _ in 0..self.config.consensus_passes {
                 let at = self.consensus_dmd(&maps[p..]);
+                let first = &fringes.modulation;
                 self.demux
-                    .demodulate_at(&led_fringes, &at, &mut fringes.wrapped, held);
+                    .demodulate_at(&led_fringes, &at, &mut fringes.wrapped, first);
                 maps = self.unwrap_all(&saturated_px, &fringes);
             }
         }
