@@ -95,8 +95,8 @@ fn moved_pixels(s: &HighSpeedSample) -> Vec<bool> {
 
 /// Per pixel, the city-block distance (pixels, capped at 255) to the nearest
 /// depth edge of the middle instant's truth: a pixel next to one whose depth
-/// differs by more than 1 %, or next to an unlit one, or at the image border
-/// of a lit region. Two chamfer sweeps.
+/// differs by more than 1 %, or next to an unlit one (the image border is
+/// not an edge). Two chamfer sweeps.
 fn edge_distance(depth_m: &[f32], width: usize, height: usize) -> Vec<u8> {
     let z = |x: usize, y: usize| depth_m[y * width + x];
     let mut d: Vec<u8> = (0..width * height)
