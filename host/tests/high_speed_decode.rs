@@ -332,3 +332,88 @@ fn an_fdd_net_that_does_not_fit_the_set_is_refused_at_load() {
     );
     std::fs::remove_dir_all(other.parent().unwrap()).unwrap();
 }
+
+/// Mean absolute wrapped-phase error of all 24 patterns against the traced truth.
+fn wrapped_mae(truth: &GroundTruth, set: &PatternSet, wrapped: &[Vec<f32>]) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for p in set.patterns() {
+        for (i, uv) in truth.projector_px.data.iter().enumerate() {
+            let (Some((u, v)), w) = (uv, wrapped[p.index][i]) else {
+                continue;
+            };
+            if w.is_finite() {
+                let e = f64::from(w) - PatternSet::phase_at(p, *u, *v);
+                sum += (e - std::f64::consts::TAU * (e / std::f64::consts::TAU).round()).abs();
+                n += 1;
+            }
+        }
+    }
+    sum / n.max(1) as f64
+}
+
+/// A consensus pass whose holes at the spheres' outlines are settled on the
+/// surface that explains their fringes (`settle_edges`) against one that
+/// fills them smoothly, and the ceiling of both: a pass on the traced depth.
+/// Measured: single pass 0.0852, consensus pass 0.0580, settled 0.0565, on
+/// the true depth 0.0334 rad.
+#[test]
+fn settled_edges_and_the_true_depth_bring_the_consensus_pass_closer_to_the_truth() {
+    let (head, truth) = scene(320, 240);
+    let set = PatternSet::seed001(DMD).unwrap();
+    let planes = high_speed_exposure(&set, &truth, 0.002, 7);
+    let channels = [&planes[0], &planes[1], &planes[2]];
+    let decode = |passes: u32, settle_edges: bool| {
+        let config = DecoderConfig {
+            consensus_passes: passes,
+            settle_edges,
+            ..DecoderConfig::default()
+        };
+        let decoder = Decoder::new(set.clone(), &head, config).unwrap();
+        let out = decoder.decode(channels).unwrap();
+        (decoder, out)
+    };
+    let (first, single) = decode(0, false);
+    let smooth = wrapped_mae(&truth, &set, &decode(1, false).1.fringes.wrapped);
+    let settled = wrapped_mae(&truth, &set, &decode(1, true).1.fringes.wrapped);
+    let depth = Raster {
+        width: 320,
+        height: 240,
+        data: truth
+            .point_m
+            .data
+            .iter()
+            .map(|p| p.map_or(f32::NAN, |p| p.z as f32))
+            .collect(),
+    };
+    let at = first.dmd_at_depths(&depth).unwrap();
+    let cleaned = first.demultiplexer().remove_zero_order([
+        &planes[0].data[..],
+        &planes[1].data,
+        &planes[2].data,
+    ]);
+    let mut oracle = single.fringes.wrapped.clone();
+    first.demultiplexer().demodulate_at(
+        &cleaned.fringes,
+        &at,
+        &mut oracle,
+        &single.fringes.modulation,
+    );
+    let oracle = wrapped_mae(&truth, &set, &oracle);
+    let single = wrapped_mae(&truth, &set, &single.fringes.wrapped);
+    println!(
+        "wrapped-phase MAE: single pass {single:.4}, consensus pass {smooth:.4}, settled {settled:.4}, on the true depth {oracle:.4} rad"
+    );
+    assert!(smooth < single, "{smooth} against {single}");
+    assert!(settled < smooth, "{settled} against {smooth}");
+    assert!(oracle < settled, "{oracle} against {settled}");
+    // A depth map of another size is refused, not read past its end.
+    let small = Raster {
+        width: 32,
+        height: 24,
+        data: vec![0.5f32; 32 * 24],
+    };
+    assert!(matches!(
+        first.dmd_at_depths(&small),
+        Err(HighSpeedError::WrongSize { .. })
+    ));
+}

@@ -14,7 +14,7 @@
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use super::consensus::{consensus_inverse_depth, fill_holes};
+use super::consensus::{consensus_inverse_depth, fill_holes, settle_holes};
 use super::demux::{Demultiplexed, Demultiplexer, DemuxOptions};
 use super::fdd::FddNet;
 use super::set::{PatternSet, SetPattern};
@@ -22,6 +22,7 @@ use super::zocr::ZocrNet;
 use super::HighSpeedError;
 use crate::calibration::{Head, Pose, ProjectorModel};
 use crate::huge_pages::filled_vec;
+use crate::phase::fast_sin_cos;
 use crate::raster::Raster;
 use crate::simd::{simd_run, Simd};
 
@@ -57,6 +58,14 @@ pub struct DecoderConfig {
     /// within 2 % of their median, holes filled smoothly),
     /// then unwrapped again ([`Demultiplexer::demodulate_at`]).
     pub consensus_passes: u32,
+    /// In each consensus pass, settle the consensus's holes at depth edges
+    /// on the surface around them that best explains the fringes there
+    /// (`settle_holes`) instead of filling them smoothly. Held out
+    /// (`highspeed_eval`): one pass's wrapped-phase MAE 0.0847 -> 0.0771
+    /// rad; but on `spheres` it puts rim pixels on the wall's depth (the
+    /// spheres' all-point fits' radius errors +7 / +9 -> +33 / +37 mm), so
+    /// it is off by default.
+    pub settle_edges: bool,
     /// Which build of the per-pixel unwrapping runs (both give the same bits;
     /// the AVX2 one is faster where the CPU has it).
     pub simd: Simd,
@@ -74,6 +83,7 @@ impl Default for DecoderConfig {
             max_saturated_share: 0.05,
             demux: DemuxOptions::default(),
             consensus_passes: 0,
+            settle_edges: false,
             simd: Simd::best(),
         }
     }
@@ -338,8 +348,8 @@ impl Decoder {
         let mut maps = self.unwrap_all(&saturated_px, &fringes);
         if let Some(led_fringes) = led_fringes {
             for _ in 0..self.config.consensus_passes {
-                let at = self.consensus_dmd(&maps[p..]);
                 let first = &fringes.modulation;
+                let at = self.consensus_dmd(&maps[p..], &led_fringes, first);
                 self.demux
                     .demodulate_at(&led_fringes, &at, &mut fringes.wrapped, first);
                 maps = self.unwrap_all(&saturated_px, &fringes);
@@ -368,20 +378,119 @@ impl Decoder {
     }
 
     /// Per pixel, the DMD position it sees at the inverse depth its
-    /// patterns' `depths` agree on ([`consensus_inverse_depth`]), holes
-    /// filled smoothly from around them so the carriers do not jump there.
-    fn consensus_dmd(&self, depths: &[Vec<f32>]) -> Vec<[f64; 2]> {
+    /// patterns' `depths` agree on ([`consensus_inverse_depth`]); holes
+    /// filled smoothly from around them so the carriers do not jump there,
+    /// or (`settle_edges`) settled where a nearby surface explains the LEDs' `fringes` better
+    /// ([`settle_holes`], [`Self::fringe_fit`]; `modulation` is the first
+    /// pass's).
+    fn consensus_dmd(
+        &self,
+        depths: &[Vec<f32>],
+        fringes: &[Vec<f32>; 3],
+        modulation: &[Vec<f32>],
+    ) -> Vec<[f64; 2]> {
         let views: Vec<&[f32]> = depths.iter().map(|d| &d[..]).collect();
         let n = self.width * self.height;
         let s = consensus_inverse_depth(&views, n, CONSENSUS_AGREE, CONSENSUS_INLIERS);
-        fill_holes(&s, self.width, self.height)
+        let filled = fill_holes(&s, self.width, self.height);
+        let predicted = if self.config.settle_edges {
+            settle_holes(
+                &s,
+                &filled,
+                self.width,
+                self.height,
+                CONSENSUS_AGREE,
+                |i, s| self.fringe_fit(fringes, modulation, i, s),
+            )
+        } else {
+            filled
+        };
+        predicted
             .par_iter()
             .zip(&self.rays)
-            .map(|(&s, ray)| {
-                let along = ray_in_projector(&self.camera_to_projector, ray);
-                dmd_on_ray_or_nan(&self.camera_to_projector, &self.projector, &along, s)
-            })
+            .map(|(&s, ray)| self.dmd_at(ray, s))
             .collect()
+    }
+
+    /// Per pixel, the DMD position it sees where its surface lies at
+    /// `depth_m` (camera z, metres; NaN where not finite). With a twin's true
+    /// depths, [`Demultiplexer::demodulate_at`] on these shows what a
+    /// consensus pass would give with a perfect prediction
+    /// (`highspeed_eval`'s oracle row).
+    pub fn dmd_at_depths(&self, depth_m: &Raster<f32>) -> Result<Vec<[f64; 2]>, HighSpeedError> {
+        let expected = (self.width, self.height);
+        let got = (depth_m.width, depth_m.height);
+        if got != expected || depth_m.data.len() != self.rays.len() {
+            return Err(HighSpeedError::WrongSize {
+                what: "depth map".into(),
+                expected,
+                got,
+            });
+        }
+        Ok(depth_m
+            .data
+            .par_iter()
+            .zip(&self.rays)
+            .map(|(&z, ray)| self.dmd_at(ray, 1.0 / f64::from(z)))
+            .collect())
+    }
+
+    /// The DMD position camera ray `ray` sees at inverse depth `s` (NaN
+    /// behind the projector).
+    fn dmd_at(&self, ray: &[f64; 2], s: f64) -> [f64; 2] {
+        let along = ray_in_projector(&self.camera_to_projector, ray);
+        dmd_on_ray_or_nan(&self.camera_to_projector, &self.projector, &along, s)
+    }
+
+    /// How much of the LEDs' `fringes` on the 3x3 pixels around pixel `i`
+    /// the 24 patterns explain if that patch lies at inverse depth `s`: per
+    /// LED, the fringes predicted there (`sum B_m cos phi_m(s)`, `B_m` the
+    /// first pass's `modulation`) scaled to fit the measured ones by least
+    /// squares, the energy that fit removes (`<f, g>^2 / <g, g>`, zero for
+    /// a negative scale), summed over the LEDs. Higher is better. At a depth
+    /// edge the wrong side's carriers leave the prediction out of step with
+    /// the light on nearly every pattern. With the twin's true depth among
+    /// the candidates, this choice took the training stream's MAE from
+    /// 0.0620 to 0.0537 rad, so it picks the right side often, not always.
+    fn fringe_fit(
+        &self,
+        fringes: &[Vec<f32>; 3],
+        modulation: &[Vec<f32>],
+        i: usize,
+        s: f64,
+    ) -> f64 {
+        let (w, h) = (self.width, self.height);
+        let (x, y) = (i % w, i / w);
+        let (mut fg, mut gg) = ([0.0f64; 3], [0.0f64; 3]);
+        for yy in y.saturating_sub(1)..(y + 2).min(h) {
+            for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                let j = yy * w + xx;
+                let dmd = self.dmd_at(&self.rays[j], s);
+                if !dmd[0].is_finite() {
+                    continue;
+                }
+                let mut g = [0.0f64; 3];
+                for pattern in self.set.patterns() {
+                    let b = f64::from(modulation[pattern.index][j]);
+                    if b.is_finite() {
+                        let cycles = pattern.frequency[0] * dmd[0] + pattern.frequency[1] * dmd[1];
+                        let radians = (std::f64::consts::TAU * (cycles - cycles.floor())) as f32;
+                        g[pattern.colour] += b * f64::from(fast_sin_cos(radians).1);
+                    }
+                }
+                for c in 0..3 {
+                    let f = f64::from(fringes[c][j]);
+                    if f.is_finite() {
+                        fg[c] += f * g[c];
+                        gg[c] += g[c] * g[c];
+                    }
+                }
+            }
+        }
+        (0..3)
+            .filter(|&c| fg[c] > 0.0 && gg[c] > 0.0)
+            .map(|c| fg[c] * fg[c] / gg[c])
+            .sum()
     }
 
     /// Every pixel's absolute phase and depth per pattern from the
