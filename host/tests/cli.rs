@@ -467,7 +467,7 @@ fn a_water_edge_margin_in_air_or_negative_is_refused_before_capture() {
 
 /// `--demod-refinements`, `--sibling-cancellations` and
 /// `--consensus-passes` belong to `--mode high-speed` and cannot join `--fdd-model` (which learnt the single
-/// pass): each refused before anything is made.
+/// pass), and `--settle-edges` needs consensus passes: each refused before anything is made.
 #[cfg(feature = "sim")]
 #[test]
 fn demodulation_passes_outside_high_speed_or_with_fdd_net_are_refused() {
@@ -495,6 +495,12 @@ fn demodulation_passes_outside_high_speed_or_with_fdd_net_are_refused() {
         );
         assert!(!out.exists(), "a refused scan made its output folder");
     }
+    // `--settle-edges` settles the consensus passes' holes: alone it would do nothing.
+    fails_with(
+        &sim_scan(&["--mode", "high-speed", "--settle-edges"], &out),
+        "--settle-edges settles the consensus passes' holes: give --consensus-passes 1 or more",
+    );
+    assert!(!out.exists(), "a refused scan made its output folder");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -199,6 +199,9 @@ pub struct HighSpeedResult {
     /// Decodes after the first on carriers predicted from the last
     /// ([`crate::highspeed::DecoderConfig::consensus_passes`]).
     pub consensus_passes: u32,
+    /// Whether the consensus passes settled their holes at depth edges
+    /// ([`crate::highspeed::DecoderConfig::settle_edges`]).
+    pub settle_edges: bool,
 }
 
 /// Minimum points on a sphere for a fit at one instant.
@@ -353,6 +356,7 @@ pub fn run_high_speed<R: Board + Projector + Camera>(
         demodulation_refinements: config.decoder.demux.refinements,
         sibling_cancellations: config.decoder.demux.cancellations,
         consensus_passes: config.decoder.consensus_passes,
+        settle_edges: config.decoder.settle_edges,
     })
 }
 

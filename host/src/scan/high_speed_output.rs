@@ -179,6 +179,8 @@ pub struct HighSpeedReport {
     /// Decodes after the first, each on carriers predicted from the depth
     /// the last one's patterns agree on (0: none).
     pub consensus_passes: u32,
+    /// Whether the consensus passes settled their holes at depth edges.
+    pub settle_edges: bool,
     /// The measured channel <- LED crosstalk, row per camera channel.
     pub crosstalk: [[f64; 3]; 3],
     /// Seconds decoding each frame took.
@@ -251,6 +253,7 @@ pub fn report(scan: &HighSpeedResult) -> HighSpeedReport {
         demodulation_refinements: scan.demodulation_refinements,
         sibling_cancellations: scan.sibling_cancellations,
         consensus_passes: scan.consensus_passes,
+        settle_edges: scan.settle_edges,
         crosstalk: [0, 1, 2].map(|r| [0, 1, 2].map(|c| m[(r, c)])),
         decode_s: scan.frames.iter().map(|f| f.decode_s).collect(),
         calibration_is_true: scan.calibration_is_true,

@@ -187,7 +187,7 @@ pub struct Args {
     /// every pattern demodulated again against the phase it has at the depth
     /// the pass before's 24 depths agree on, so the windows no longer
     /// flatten small curved parts (held-out twin scenes: phase MAE 0.117 ->
-    /// 0.088 rad); about twice the decode time (README, high-speed section).
+    /// 0.085 rad); about twice the decode time (README, high-speed section).
     /// Not with --fdd-model, which learnt the single pass's errors.
     #[arg(
         long,
@@ -196,6 +196,13 @@ pub struct Args {
         conflicts_with = "fdd_model"
     )]
     consensus_passes: u32,
+    /// --mode high-speed, with --consensus-passes: settle the consensus's
+    /// holes at depth edges on the surface around them that best explains
+    /// the fringes there instead of filling them smoothly (held-out twin
+    /// scenes: phase MAE 0.085 -> 0.077 rad; the spheres' outlines get
+    /// worse: README, high-speed section).
+    #[arg(long)]
+    settle_edges: bool,
     /// Drive the simulated projectors through this DMD controller's USB HID
     /// driver and hil-sim's byte-level controller (--sim; default: patterns
     /// go straight to the simulated DMDs).
@@ -562,6 +569,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.consensus_passes == 0 || matches!(args.mode, ModeArg::HighSpeed),
         "--consensus-passes is for --mode high-speed only"
     );
+    anyhow::ensure!(
+        !args.settle_edges || args.consensus_passes > 0,
+        "--settle-edges settles the consensus passes' holes: give --consensus-passes 1 or more"
+    );
     let mode = match args.mode {
         ModeArg::Sequential => Mode::Sequential,
         ModeArg::Simultaneous => Mode::Simultaneous,
@@ -580,6 +591,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 demod_refinements: args.demod_refinements,
                 sibling_cancellations: args.sibling_cancellations,
                 consensus_passes: args.consensus_passes,
+                settle_edges: args.settle_edges,
             })
         }
         ModeArg::HighSpeed => return high_speed_hardware(&args),
@@ -650,6 +662,7 @@ fn high_speed_hardware(args: &Args) -> anyhow::Result<()> {
     config.decoder.demux.refinements = args.demod_refinements;
     config.decoder.demux.cancellations = args.sibling_cancellations;
     config.decoder.consensus_passes = args.consensus_passes;
+    config.decoder.settle_edges = args.settle_edges;
     let failed = || {
         format!(
             "high-speed scan into {} failed; nothing written",

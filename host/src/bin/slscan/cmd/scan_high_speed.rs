@@ -36,6 +36,8 @@ pub struct Options<'a> {
     pub sibling_cancellations: u32,
     /// `--consensus-passes`: decodes on carriers predicted from the last.
     pub consensus_passes: u32,
+    /// `--settle-edges`: the consensus's holes at depth edges settled.
+    pub settle_edges: bool,
 }
 
 /// `--zocr-model`, loaded and checked against seed 001's set on a DMD of
@@ -91,6 +93,7 @@ fn scan_sim(options: &Options) -> anyhow::Result<HighSpeedReport> {
     config.scan.decoder.demux.refinements = options.demod_refinements;
     config.scan.decoder.demux.cancellations = options.sibling_cancellations;
     config.scan.decoder.consensus_passes = options.consensus_passes;
+    config.scan.decoder.settle_edges = options.settle_edges;
     let failed = || {
         format!(
             "high-speed scan into {} failed; nothing written",
@@ -129,6 +132,10 @@ pub fn print_summary(report: &HighSpeedReport, out: &Path) {
         } + &match report.consensus_passes {
             0 => String::new(),
             n => format!(", {n} consensus pass(es)"),
+        } + if report.settle_edges {
+            ", holes at edges settled"
+        } else {
+            ""
         }
     );
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
