@@ -448,18 +448,20 @@ fn main() -> anyhow::Result<()> {
             Learned::Fdd,
         ));
     }
-    if let Some(net) = &zocr {
-        let analytic = Decoder::new(
-            set.clone(),
-            head,
-            DecoderConfig {
-                demux: DemuxOptions {
-                    crosstalk: Some(crosstalk),
-                    ..DemuxOptions::default()
-                },
-                ..DecoderConfig::default()
+    // The shipped analytic decoder: stage 1's reference and the oracle's first pass.
+    let analytic = Decoder::new(
+        set.clone(),
+        head,
+        DecoderConfig {
+            demux: DemuxOptions {
+                crosstalk: Some(crosstalk),
+                ..DemuxOptions::default()
             },
-        )?;
+            samples: epipolar_samples,
+            ..DecoderConfig::default()
+        },
+    )?;
+    if let Some(net) = &zocr {
         let (w, h) = detail_size(&detail);
         let mut rows = [Stage1::default(), Stage1::default()];
         for s in &samples {
@@ -586,18 +588,7 @@ fn main() -> anyhow::Result<()> {
     // The ceiling of the consensus pass: one pass on carriers predicted from
     // the twin's true depth instead of the 24 depths' consensus (an oracle,
     // not a decoder: how much a better prediction could still give).
-    let first_pass = Decoder::new(
-        set.clone(),
-        head,
-        DecoderConfig {
-            demux: DemuxOptions {
-                crosstalk: Some(crosstalk),
-                ..DemuxOptions::default()
-            },
-            samples: epipolar_samples,
-            ..DecoderConfig::default()
-        },
-    )?;
+    let first_pass = &analytic;
     let (mut oracle, mut oracle_by_edge) =
         (Tally::default(), <[Tally; EDGE_BANDS.len()]>::default());
     for (s, edge) in samples.iter().zip(&edges) {
