@@ -15,7 +15,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use super::consensus::{consensus_inverse_depth, fill_holes, settle_holes};
-use super::demux::{Demultiplexed, Demultiplexer, DemuxOptions};
+use super::demux::{cycles_to_radians, Demultiplexed, Demultiplexer, DemuxOptions};
 use super::fdd::FddNet;
 use super::set::{PatternSet, SetPattern};
 use super::zocr::ZocrNet;
@@ -61,10 +61,10 @@ pub struct DecoderConfig {
     /// In each consensus pass, settle the consensus's holes at depth edges
     /// on the surface around them that best explains the fringes there
     /// (`settle_holes`) instead of filling them smoothly. Held out
-    /// (`highspeed_eval`): one pass's wrapped-phase MAE 0.0847 -> 0.0771
-    /// rad; but on `spheres` it puts rim pixels on the wall's depth (the
-    /// spheres' all-point fits' radius errors +7 / +9 -> +33 / +37 mm), so
-    /// it is off by default.
+    /// (`highspeed_eval`): one pass's wrapped-phase MAE 0.0847 -> 0.0788
+    /// rad; but on `spheres` it decodes more rim pixels, some on the wall's
+    /// side (the all-point fits' radius errors +7 / +9 -> +16 / +14 mm),
+    /// and `falling`'s depth RMSE rises, so it is off by default.
     pub settle_edges: bool,
     /// Which build of the per-pixel unwrapping runs (both give the same bits;
     /// the AVX2 one is faster where the CPU has it).
@@ -380,9 +380,9 @@ impl Decoder {
     /// Per pixel, the DMD position it sees at the inverse depth its
     /// patterns' `depths` agree on ([`consensus_inverse_depth`]); holes
     /// filled smoothly from around them so the carriers do not jump there,
-    /// or (`settle_edges`) settled where a nearby surface explains the LEDs' `fringes` better
-    /// ([`settle_holes`], [`Self::fringe_fit`]; `modulation` is the first
-    /// pass's).
+    /// or (`settle_edges`) settled where a nearby surface explains the LEDs'
+    /// `fringes` better ([`settle_holes`], [`Self::fringe_fit`];
+    /// `modulation` is the first pass's).
     fn consensus_dmd(
         &self,
         depths: &[Vec<f32>],
@@ -449,9 +449,11 @@ impl Decoder {
     /// squares, the energy that fit removes (`<f, g>^2 / <g, g>`, zero for
     /// a negative scale), summed over the LEDs. Higher is better. At a depth
     /// edge the wrong side's carriers leave the prediction out of step with
-    /// the light on nearly every pattern. With the twin's true depth among
-    /// the candidates, this choice took the training stream's MAE from
-    /// 0.0620 to 0.0537 rad, so it picks the right side often, not always.
+    /// the light on nearly every pattern. With the twin's true depth added
+    /// to the candidates (then the nearest and farthest in a square), this
+    /// choice took the training stream's MAE from 0.0620 to 0.0537 rad (a
+    /// pass on the true depth alone: 0.0399), so it picks the right side
+    /// often, not always.
     fn fringe_fit(
         &self,
         fringes: &[Vec<f32>; 3],
@@ -474,8 +476,8 @@ impl Decoder {
                     let b = f64::from(modulation[pattern.index][j]);
                     if b.is_finite() {
                         let cycles = pattern.frequency[0] * dmd[0] + pattern.frequency[1] * dmd[1];
-                        let radians = (std::f64::consts::TAU * (cycles - cycles.floor())) as f32;
-                        g[pattern.colour] += b * f64::from(fast_sin_cos(radians).1);
+                        g[pattern.colour] +=
+                            b * f64::from(fast_sin_cos(cycles_to_radians(cycles)).1);
                     }
                 }
                 for c in 0..3 {

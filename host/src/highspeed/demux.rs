@@ -564,7 +564,7 @@ impl DemodScratch {
 /// A phase in cycles as radians in [0, 2 pi), the whole cycles dropped in
 /// f64 so that f32 keeps the fraction's precision.
 #[inline(always)]
-fn cycles_to_radians(cycles: f64) -> f32 {
+pub(crate) fn cycles_to_radians(cycles: f64) -> f32 {
     (std::f64::consts::TAU * (cycles - cycles.floor())) as f32
 }
 
