@@ -588,25 +588,24 @@ fn main() -> anyhow::Result<()> {
     // The ceiling of the consensus pass: one pass on carriers predicted from
     // the twin's true depth instead of the 24 depths' consensus (an oracle,
     // not a decoder: how much a better prediction could still give).
-    let first_pass = &analytic;
     let (mut oracle, mut oracle_by_edge) =
         (Tally::default(), <[Tally; EDGE_BANDS.len()]>::default());
     for (s, edge) in samples.iter().zip(&edges) {
-        let out = first_pass.decode([&s.channels[0], &s.channels[1], &s.channels[2]])?;
+        let out = analytic.decode([&s.channels[0], &s.channels[1], &s.channels[2]])?;
         let planes = [
             &s.channels[0].data[..],
             &s.channels[1].data,
             &s.channels[2].data,
         ];
-        let cleaned = first_pass.demultiplexer().remove_zero_order(planes);
+        let cleaned = analytic.demultiplexer().remove_zero_order(planes);
         let mut wrapped = out.fringes.wrapped.clone();
         let middle = Raster {
             width: detail.camera.0 as usize,
             height: detail.camera.1 as usize,
             data: s.depth_m[s.depth_m.len() / 2].clone(),
         };
-        let at = first_pass.dmd_at_depths(&middle)?;
-        first_pass.demultiplexer().demodulate_at(
+        let at = analytic.dmd_at_depths(&middle)?;
+        analytic.demultiplexer().demodulate_at(
             &cleaned.fringes,
             &at,
             &mut wrapped,

@@ -180,54 +180,32 @@ fn first_known(
 }
 
 /// `values` with NaN wherever a NaN lies within `by` pixels (square
-/// neighbourhood).
+/// neighbourhood; separable: a hole within `by` along the row, then within
+/// `by` rows of that).
 fn grow_holes(values: &[f64], width: usize, height: usize, by: usize) -> Vec<f64> {
-    let hole: Vec<f64> = values
-        .iter()
-        .map(|v| if v.is_finite() { 0.0 } else { 1.0 })
-        .collect();
-    let near_hole = extreme_within(&hole, width, height, by, f64::max);
-    values
-        .iter()
-        .zip(&near_hole)
-        .map(|(&v, &h)| if h > 0.0 { f64::NAN } else { v })
-        .collect()
-}
-
-/// Per pixel, `pick` (max or min) over the finite values within `radius`
-/// pixels (square neighbourhood, separable: rows, then columns); NaN where
-/// there are none.
-fn extreme_within(
-    values: &[f64],
-    width: usize,
-    height: usize,
-    radius: usize,
-    pick: fn(f64, f64) -> f64,
-) -> Vec<f64> {
-    let fold = |a: f64, b: f64| match (a.is_finite(), b.is_finite()) {
-        (true, true) => pick(a, b),
-        (false, _) => b,
-        (true, false) => a,
-    };
-    let mut rows = vec![f64::NAN; values.len()];
-    rows.par_chunks_mut(width)
+    let mut in_row = vec![false; values.len()];
+    in_row
+        .par_chunks_mut(width)
         .zip(values.par_chunks(width))
         .for_each(|(out, row)| {
             for (x, o) in out.iter_mut().enumerate() {
-                let span = &row[x.saturating_sub(radius)..(x + radius + 1).min(width)];
-                *o = span.iter().fold(f64::NAN, |a, &b| fold(a, b));
+                let span = &row[x.saturating_sub(by)..(x + by + 1).min(width)];
+                *o = span.iter().any(|v| !v.is_finite());
             }
         });
-    let mut out = vec![f64::NAN; values.len()];
-    out.par_chunks_mut(width).enumerate().for_each(|(y, out)| {
-        let span = y.saturating_sub(radius)..(y + radius + 1).min(height);
-        for (x, o) in out.iter_mut().enumerate() {
-            *o = span
-                .clone()
-                .fold(f64::NAN, |a, yy| fold(a, rows[yy * width + x]));
-        }
-    });
-    out
+    let mut grown = values.to_vec();
+    grown
+        .par_chunks_mut(width)
+        .enumerate()
+        .for_each(|(y, out)| {
+            let rows = y.saturating_sub(by)..(y + by + 1).min(height);
+            for (x, o) in out.iter_mut().enumerate() {
+                if rows.clone().any(|yy| in_row[yy * width + x]) {
+                    *o = f64::NAN;
+                }
+            }
+        });
+    grown
 }
 
 #[cfg(test)]
@@ -276,22 +254,24 @@ mod tests {
     }
 
     #[test]
-    fn extremes_and_grown_holes_look_around_each_pixel() {
+    fn holes_grow_along_rows_and_columns() {
         // One row: 1, NaN, 5, NaN, NaN, NaN, 2.
         let v = [1.0, f64::NAN, 5.0, f64::NAN, f64::NAN, f64::NAN, 2.0];
-        let max = extreme_within(&v, 7, 1, 1, f64::max);
-        assert_eq!(&max[..3], &[1.0, 5.0, 5.0]);
-        assert!(max[4].is_nan());
-        let min = extreme_within(&v, 7, 1, 2, f64::min);
-        assert_eq!(min[1], 1.0);
-        assert_eq!(min[4], 2.0);
-        // Columns too: a 1x3 image.
-        let col = extreme_within(&[3.0, f64::NAN, 4.0], 1, 3, 1, f64::min);
-        assert_eq!(col, vec![3.0, 3.0, 4.0]);
         let grown = grow_holes(&v, 7, 1, 1);
         assert!(grown[..4].iter().all(|g| g.is_nan()));
         assert!(grown[6].is_nan());
         assert_eq!(grow_holes(&[1.0, 2.0], 2, 1, 1), vec![1.0, 2.0]);
+        // Columns too: a 1x4 image.
+        let col = grow_holes(&[1.0, 2.0, 3.0, f64::NAN], 1, 4, 1);
+        assert_eq!(&col[..2], &[1.0, 2.0]);
+        assert!(col[2].is_nan() && col[3].is_nan());
+        // And by more than one pixel, diagonally (square neighbourhood).
+        let mut square = vec![0.0; 25];
+        square[0] = f64::NAN;
+        let grown = grow_holes(&square, 5, 5, 2);
+        for (i, g) in grown.iter().enumerate() {
+            assert_eq!(g.is_nan(), i % 5 <= 2 && i / 5 <= 2, "pixel {i}");
+        }
     }
 
     #[test]

@@ -613,8 +613,15 @@ fn phase_and_modulation(
 ) {
     for (((z, &c), p), b) in image.iter().zip(carrier).zip(phase).zip(modulation) {
         *p = phase_on(z, c);
-        *b = 2.0 * (z.re * z.re + z.im * z.im).sqrt();
+        *b = modulation_of(z);
     }
+}
+
+/// A filtered baseband's modulation `B = 2 |z|` (the fringe `B cos phi`
+/// shifted to DC keeps half its amplitude).
+#[inline(always)]
+fn modulation_of(z: &Complex32) -> f32 {
+    2.0 * (z.re * z.re + z.im * z.im).sqrt()
 }
 
 /// How much of the first pass's modulation a consensus demodulation must
@@ -634,8 +641,7 @@ const KEEP_SHARE: f32 = 0.75;
 #[inline(always)]
 fn phase_where_stronger(image: &[Complex32], carrier: &[f32], phase: &mut [f32], first: &[f32]) {
     for (((z, &c), p), &b) in image.iter().zip(carrier).zip(phase).zip(first) {
-        let modulation = 2.0 * (z.re * z.re + z.im * z.im).sqrt();
-        if modulation >= KEEP_SHARE * b || !p.is_finite() {
+        if modulation_of(z) >= KEEP_SHARE * b || !p.is_finite() {
             *p = phase_on(z, c);
         }
     }
