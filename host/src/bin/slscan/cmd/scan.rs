@@ -199,7 +199,7 @@ pub struct Args {
     /// --mode high-speed, with --consensus-passes: settle the consensus's
     /// holes at depth edges on the surface around them that best explains
     /// the fringes there instead of filling them smoothly (held-out twin
-    /// scenes: phase MAE 0.085 -> 0.079 rad; the spheres' outlines get
+    /// scenes: phase MAE 0.085 -> 0.0785 rad; the spheres' outlines get
     /// worse: README, high-speed section).
     #[arg(long)]
     settle_edges: bool,
