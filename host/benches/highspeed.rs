@@ -6,7 +6,8 @@
 //! demodulation (the default), with one pass of sibling cancellation
 //! (`--sibling-cancellations 1`, 24 demodulations more) and with one
 //! consensus pass (`--consensus-passes 1`: 24 demodulations and the
-//! unwrapping and depth again).
+//! unwrapping and depth again), also with its holes at depth edges settled
+//! (`--settle-edges`: a fringe fit per candidate at those pixels).
 //!
 //! Then the first stage alone, analytic (crosstalk unmixing, Gaussian low
 //! band) beside ZOCR-Net on tract (`models/highspeed_zocr.onnx`), whose time
@@ -40,11 +41,13 @@ fn main() {
         "{} threads, median of {runs} runs; seed 001: 90 ms per image on an RTX 4090 (networks); goal here 1 s",
         rayon::current_num_threads()
     );
-    println!("| image | sibling cancellation passes | consensus passes | set-up | epipolar samples | demultiplex (24 fringes) | unwrap + depth (and the consensus pass) | whole decode | decoded pixels (of lit) |");
-    println!("|---|---|---|---|---|---|---|---|---|");
-    for ((w, h), (cancellations, consensus)) in [(640u32, 480u32), (1280, 1024)]
+    println!("| image | sibling cancellation passes | consensus passes | holes settled | set-up | epipolar samples | demultiplex (24 fringes) | unwrap + depth (and the consensus pass) | whole decode | decoded pixels (of lit) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for ((w, h), (cancellations, consensus, settle)) in [(640u32, 480u32), (1280, 1024)]
         .into_iter()
-        .flat_map(|size| [(size, (0, 0)), (size, (1, 0)), (size, (0, 1))])
+        .flat_map(|size| {
+            [(0, 0, false), (1, 0, false), (0, 1, false), (0, 1, true)].map(|v| (size, v))
+        })
     {
         let set = PatternSet::seed001(DMD).expect("seed set");
         let head = high_speed_head(w, h, DMD);
@@ -53,6 +56,7 @@ fn main() {
         let mut config = DecoderConfig::default();
         config.demux.cancellations = cancellations;
         config.consensus_passes = consensus;
+        config.settle_edges = settle;
         let t = Instant::now();
         let decoder = Decoder::new(set, &head, config).expect("decoder");
         let setup = t.elapsed();
@@ -80,7 +84,8 @@ fn main() {
         }
         let (demux, whole) = (median(demux), median(whole));
         println!(
-            "| {w}x{h} | {cancellations} | {consensus} | {:.0} ms | {} | {:.0} ms | {:.0} ms | **{:.0} ms** | {decoded} (instant 0) |",
+            "| {w}x{h} | {cancellations} | {consensus} | {} | {:.0} ms | {} | {:.0} ms | {:.0} ms | **{:.0} ms** | {decoded} (instant 0) |",
+            if settle { "yes" } else { "no" },
             setup.as_secs_f64() * 1e3,
             decoder.samples(),
             demux.as_secs_f64() * 1e3,
