@@ -206,8 +206,8 @@ const SLOPE_SPAN: usize = 3;
 /// The surface met walking from pixel `i` by `step` (dx, dy), at most
 /// `reach` steps: the first finite value, extrapolated back to pixel `i`
 /// along the slope between it and the value [`SLOPE_SPAN`] steps further
-/// (that value alone where the further one is not known or past the image);
-/// NaN if none. A rim recedes steeply toward the edge: on `spheres` (one
+/// (the first value alone where the further one is unknown or past the
+/// image); NaN if none. A rim recedes steeply toward the edge: on `spheres` (one
 /// settled pass) the extrapolation took the all-point fits' radius errors
 /// from +15.6 / +13.5 to +9.6 / +13.1 mm and the per-instant depth RMSE
 /// median from 6.39 to 5.76 mm (training stream 0.0645 -> 0.0642 rad).
