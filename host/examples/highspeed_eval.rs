@@ -591,26 +591,26 @@ fn main() -> anyhow::Result<()> {
     let (mut oracle, mut oracle_by_edge) =
         (Tally::default(), <[Tally; EDGE_BANDS.len()]>::default());
     for (s, edge) in samples.iter().zip(&edges) {
-        let out = analytic.decode([&s.channels[0], &s.channels[1], &s.channels[2]])?;
         let planes = [
             &s.channels[0].data[..],
             &s.channels[1].data,
             &s.channels[2].data,
         ];
-        let cleaned = analytic.demultiplexer().remove_zero_order(planes);
-        let mut wrapped = out.fringes.wrapped.clone();
+        // The first pass's demultiplexing (what the decoder's consensus
+        // pass starts from), without its unwrapping, which the oracle does
+        // not need: the LEDs' fringes kept for the second demodulation.
+        let demux = analytic.demultiplexer();
+        let cleaned = demux.remove_zero_order(planes);
+        let led_fringes = cleaned.fringes.clone();
+        let first = demux.demodulate_all(cleaned);
+        let mut wrapped = first.wrapped;
         let middle = Raster {
             width: detail.camera.0 as usize,
             height: detail.camera.1 as usize,
             data: s.depth_m[s.depth_m.len() / 2].clone(),
         };
         let at = analytic.dmd_at_depths(&middle)?;
-        analytic.demultiplexer().demodulate_at(
-            &cleaned.fringes,
-            &at,
-            &mut wrapped,
-            &out.fringes.modulation,
-        );
+        demux.demodulate_at(&led_fringes, &at, &mut wrapped, &first.modulation);
         for (m, w) in wrapped.iter().enumerate() {
             oracle.add(w, &s.phase[m]);
             for (band, &(lo, hi, _)) in oracle_by_edge.iter_mut().zip(&EDGE_BANDS) {
